@@ -1,0 +1,160 @@
+// mvkp train / match / pair.
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "commands.h"
+#include "mvkp/core/image_io.h"
+#include "mvkp/core/timer.h"
+#include "mvkp/match/matcher.h"
+#include "mvkp/model/model.h"
+#include "mvkp/train/trainer.h"
+#include "output.h"
+
+namespace mvkp::cli {
+namespace {
+
+struct TrainArgs {
+  std::string image, output;
+  bool quiet = false;
+  TrainOptions opt;
+};
+
+struct MatchArgs {
+  std::string model;
+  std::vector<std::string> queries;
+  bool json = false;
+  std::string draw;
+  bool affine = false;
+  MatchOptions opt;
+};
+
+struct PairArgs {
+  std::string image1, image2;
+  bool json = false;
+  std::string draw;
+  bool affine = false;
+  TrainOptions train;
+  MatchOptions match;
+};
+
+int RunTrain(TrainArgs& a) {
+  const cv::Mat img = LoadImageGray(a.image);
+  if (!a.quiet) a.opt.progress = [](int d, int t) { Progress("training: view", d, t); };
+  Timer t;
+  const Model model = Train(img, a.opt);
+  const double ms = t.ElapsedMs();
+  SaveModel(model, a.output);
+  const auto bytes = std::filesystem::file_size(a.output);
+  std::printf("trained %s (%dx%d): %zu locations, %d centres x %d dims, %.0f ms -> %s (%.1f KB)\n", a.image.c_str(),
+              img.cols, img.rows, model.locations.size(), model.descriptors.rows, model.params.dims, ms,
+              a.output.c_str(), bytes / 1024.0);
+  return 0;
+}
+
+nlohmann::json MatchJson(const std::string& query, const MatchResult& r) {
+  nlohmann::json outline = nullptr;
+  if (r.found) {
+    outline = nlohmann::json::array();
+    for (const auto& p : r.outline) outline.push_back({p.x, p.y});
+  }
+  return {{"query", query},         {"found", r.found},         {"homography", HomographyJson(r)},
+          {"outline", outline},     {"inliers", r.inliers},     {"matches", r.matches.size()},
+          {"keypoints", r.keypoints}, {"ratio", r.final_ratio}, {"time_ms", TimingJson(r.time)}};
+}
+
+int RunMatch(MatchArgs& a) {
+  const Model model = LoadModel(a.model);
+  if (a.affine) a.opt.geometry = GeometryModel::kAffine;
+  const Matcher matcher(model, a.opt);
+  int failures = 0;
+  for (std::size_t i = 0; i < a.queries.size(); ++i) {
+    const std::string& q = a.queries[i];
+    try {
+      const cv::Mat frame = LoadImageGray(q);
+      const MatchResult r = matcher.Match(frame);
+      if (a.json) {
+        std::cout << MatchJson(q, r).dump() << std::endl;
+      } else if (r.found) {
+        std::printf("%s: found, %d inliers of %zu matches, %d keypoints, %.2f ms; outline", q.c_str(), r.inliers,
+                    r.matches.size(), r.keypoints, r.time.total());
+        for (const auto& p : r.outline) std::printf(" (%.1f, %.1f)", p.x, p.y);
+        std::printf("\n");
+      } else {
+        std::printf("%s: not found (%zu matches, %d keypoints, %.2f ms)\n", q.c_str(), r.matches.size(), r.keypoints,
+                    r.time.total());
+      }
+      if (!a.draw.empty()) SaveImage(IndexedPath(a.draw, int(i), int(a.queries.size())), DrawMatch(LoadImageColor(q), r));
+    } catch (const std::exception& e) {
+      ++failures;
+      std::fprintf(stderr, "mvkp match: %s\n", e.what());
+      if (a.json) std::cout << nlohmann::json{{"query", q}, {"error", e.what()}}.dump() << std::endl;
+    }
+  }
+  return failures ? 1 : 0;
+}
+
+int RunPair(PairArgs& a) {
+  Timer total;
+  const cv::Mat img1 = LoadImageGray(a.image1);
+  const cv::Mat img2 = LoadImageGray(a.image2);
+  if (a.affine) a.match.geometry = GeometryModel::kAffine;
+  const Model model = Train(img1, a.train);
+  const Matcher matcher(model, a.match);
+  const MatchResult r = matcher.Match(img2);
+  const double total_ms = total.ElapsedMs();
+  if (a.json) {
+    nlohmann::json matches = nlohmann::json::array();
+    for (const auto& m : r.matches) matches.push_back({m.object.x, m.object.y, m.query.x, m.query.y, m.distance, m.inlier ? 1 : 0});
+    nlohmann::json t = TimingJson(r.time);
+    t["train"] = model.params.train_ms;
+    t["total"] = total_ms;
+    nlohmann::json out = {{"method", "mvkp"}, {"keypoints1", model.locations.size()}, {"keypoints2", r.keypoints},
+                          {"time_ms", t}, {"homography", HomographyJson(r)}, {"matches", matches}};
+    std::cout << out.dump() << std::endl;
+  } else {
+    std::printf("%s -> %s: %s, %d inliers of %zu matches; train %.0f ms, query %.2f ms\n", a.image1.c_str(),
+                a.image2.c_str(), r.found ? "found" : "not found", r.inliers, r.matches.size(), model.params.train_ms,
+                r.time.total());
+  }
+  if (!a.draw.empty()) SaveImage(a.draw, DrawPair(LoadImageColor(a.image1), LoadImageColor(a.image2), r));
+  return 0;
+}
+
+}  // namespace
+
+void RegisterTrain(CLI::App& app, int* code) {
+  auto a = std::make_shared<TrainArgs>();
+  auto* c = app.add_subcommand("train", "Train a planar target from one image");
+  c->add_option("IMAGE", a->image, "object image")->required();
+  c->add_option("-o,--output", a->output, "model file to write")->required();
+  c->add_flag("-q,--quiet", a->quiet, "no progress line");
+  AddTrainOptions(c, &a->opt);
+  c->callback([a, code] { *code = RunTrain(*a); });
+}
+
+void RegisterMatch(CLI::App& app, int* code) {
+  auto a = std::make_shared<MatchArgs>();
+  auto* c = app.add_subcommand("match", "Find a trained target in query images");
+  c->add_option("MODEL", a->model, "model file from 'mvkp train'")->required();
+  c->add_option("QUERY", a->queries, "query images")->required();
+  c->add_flag("--json", a->json, "one JSON object per line, per query");
+  c->add_option("--draw", a->draw, "write the annotated frame here (-N suffix for several queries)");
+  AddMatchOptions(c, &a->opt, &a->affine);
+  c->callback([a, code] { *code = RunMatch(*a); });
+}
+
+void RegisterPair(CLI::App& app, int* code) {
+  auto a = std::make_shared<PairArgs>();
+  auto* c = app.add_subcommand("pair", "Train on IMG1, find it in IMG2 (correspondence JSON with --json)");
+  c->add_option("IMG1", a->image1, "object image")->required();
+  c->add_option("IMG2", a->image2, "query image")->required();
+  c->add_flag("--json", a->json, "print the correspondence JSON");
+  c->add_option("--draw", a->draw, "write a side-by-side drawing here");
+  AddTrainOptions(c, &a->train);
+  AddMatchOptions(c, &a->match, &a->affine);
+  c->callback([a, code] { *code = RunPair(*a); });
+}
+
+}  // namespace mvkp::cli

@@ -1,0 +1,16 @@
+// The mvkp command-line tool: one Register*/Run* pair per subcommand.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace mvkp::cli {
+
+// Each Register* adds its subcommand to `app` and arranges for it to run.
+// The run callback sets *exit_code.
+void RegisterTrain(CLI::App& app, int* exit_code);
+void RegisterMatch(CLI::App& app, int* exit_code);
+void RegisterPair(CLI::App& app, int* exit_code);
+void RegisterSynth(CLI::App& app, int* exit_code);
+void RegisterBench(CLI::App& app, int* exit_code);
+
+}  // namespace mvkp::cli

@@ -1,0 +1,42 @@
+// mvkp: train planar targets from one image and find them in frames.
+#include <cstdio>
+#include <exception>
+
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+
+#include "commands.h"
+#include "mvkp/core/error.h"
+
+int main(int argc, char** argv) {
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+  CLI::App app{"mvkp - fast planar image matching (Multiple View Kernel Projection)"};
+  app.require_subcommand(1);
+  cv::setNumThreads(1);
+  int threads = 1;
+  app.add_option("--threads", threads, "OpenCV worker threads (timings are single-thread by default)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256))
+      ->each([](const std::string& v) { cv::setNumThreads(std::stoi(v)); });
+  int code = 0;
+  mvkp::cli::RegisterTrain(app, &code);
+  mvkp::cli::RegisterMatch(app, &code);
+  mvkp::cli::RegisterPair(app, &code);
+  mvkp::cli::RegisterSynth(app, &code);
+  mvkp::cli::RegisterBench(app, &code);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const mvkp::Error& e) {
+    std::fprintf(stderr, "mvkp: error: %s\n", e.what());
+    return 1;
+  } catch (const cv::Exception& e) {
+    std::fprintf(stderr, "mvkp: OpenCV error: %s\n", e.err.c_str());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mvkp: error: %s\n", e.what());
+    return 1;
+  }
+  return code;
+}

@@ -1,0 +1,97 @@
+#include "output.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+
+#include <opencv2/imgproc.hpp>
+
+namespace mvkp::cli {
+
+void AddTrainOptions(CLI::App* cmd, TrainOptions* o) {
+  cmd->add_option("--views", o->views, "synthetic affine training views")->capture_default_str();
+  cmd->add_option("--locations", o->locations, "object locations kept (most stable first)")->capture_default_str();
+  cmd->add_option("--clusters", o->clusters, "k-means centres per location")->capture_default_str();
+  cmd->add_option("--kernels", o->kernels, "Walsh-Hadamard kernels (descriptor dimension)")->capture_default_str();
+  cmd->add_option("--seed", o->seed, "random seed (views, noise, k-means)")->capture_default_str();
+  cmd->add_option("--min-scale", o->min_scale, "smallest view scale lambda")->capture_default_str();
+  cmd->add_option("--max-scale", o->max_scale, "largest view scale lambda")->capture_default_str();
+  cmd->add_option("--points-per-view", o->points_per_view, "detections kept per training view")->capture_default_str();
+  cmd->add_option("--max-object-side", o->max_object_side, "train larger targets at this size (0: never)")->capture_default_str();
+  cmd->add_flag("!--no-orient", o->orient, "thesis-literal patches: no orientation normalisation");
+}
+
+void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
+  cmd->add_option("--ratio", o->ratio, "distance-ratio threshold d1/d2")->capture_default_str();
+  cmd->add_option("--dynamic-goal", o->dynamic_goal, "steer the ratio toward this many matches (0: fixed ratio)")->capture_default_str();
+  cmd->add_option("--max-points", o->max_points, "strongest query points")->capture_default_str();
+  cmd->add_option("--ransac-threshold", o->ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
+  cmd->add_option("--min-inliers", o->min_inliers, "fewer inliers: target not found")->capture_default_str();
+  cmd->add_flag("--affine", *affine, "fit an affine transform instead of a homography");
+}
+
+nlohmann::json HomographyJson(const MatchResult& r) {
+  if (!r.found) return nullptr;
+  nlohmann::json h = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) h.push_back({r.homography(i, 0), r.homography(i, 1), r.homography(i, 2)});
+  return h;
+}
+
+nlohmann::json TimingJson(const MatchTiming& t) {
+  return {{"detect", t.smooth_ms + t.detect_ms}, {"describe", t.describe_ms}, {"search", t.search_ms},
+          {"verify", t.verify_ms}, {"query", t.total()}};
+}
+
+static cv::Mat ToBgr(const cv::Mat& m) {
+  cv::Mat out;
+  if (m.channels() == 1) cv::cvtColor(m, out, cv::COLOR_GRAY2BGR);
+  else out = m.clone();
+  return out;
+}
+
+static void DrawOutline(cv::Mat& img, const MatchResult& r, cv::Point2f offset) {
+  if (!r.found) return;
+  std::vector<cv::Point> poly;
+  for (const auto& p : r.outline) poly.emplace_back(cv::Point(int(std::lround(p.x + offset.x)), int(std::lround(p.y + offset.y))));
+  cv::polylines(img, poly, true, cv::Scalar(0, 255, 0), 3, cv::LINE_AA);
+}
+
+cv::Mat DrawMatch(const cv::Mat& frame, const MatchResult& r) {
+  cv::Mat img = ToBgr(frame);
+  for (const auto& m : r.matches)
+    cv::circle(img, m.query, m.inlier ? 3 : 2, m.inlier ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), -1, cv::LINE_AA);
+  DrawOutline(img, r, {0, 0});
+  cv::putText(img, r.found ? "found: " + std::to_string(r.inliers) + " inliers" : "not found", {10, 25},
+              cv::FONT_HERSHEY_SIMPLEX, 0.7, r.found ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 2, cv::LINE_AA);
+  return img;
+}
+
+cv::Mat DrawPair(const cv::Mat& object, const cv::Mat& frame, const MatchResult& r) {
+  cv::Mat a = ToBgr(object), b = ToBgr(frame);
+  cv::Mat img(std::max(a.rows, b.rows), a.cols + b.cols, CV_8UC3, cv::Scalar::all(0));
+  a.copyTo(img(cv::Rect(0, 0, a.cols, a.rows)));
+  b.copyTo(img(cv::Rect(a.cols, 0, b.cols, b.rows)));
+  const cv::Point2f off(float(a.cols), 0.f);
+  for (const auto& m : r.matches) {
+    if (m.inlier) cv::line(img, m.object, m.query + off, cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
+    else cv::circle(img, m.query + off, 2, cv::Scalar(0, 0, 255), -1, cv::LINE_AA);
+  }
+  DrawOutline(img, r, off);
+  return img;
+}
+
+std::string IndexedPath(const std::string& path, int index, int count) {
+  if (count <= 1) return path;
+  std::filesystem::path p(path);
+  return (p.parent_path() / (p.stem().string() + "-" + std::to_string(index) + p.extension().string())).string();
+}
+
+void Progress(const std::string& what, int done, int total) {
+  static const bool tty = isatty(fileno(stderr));
+  if (!tty) return;
+  std::fprintf(stderr, "\r%s %d/%d%s", what.c_str(), done, total, done == total ? "\n" : "");
+  std::fflush(stderr);
+}
+
+}  // namespace mvkp::cli

@@ -1,0 +1,34 @@
+// Shared CLI helpers: option groups, JSON encoding and drawing.
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "mvkp/match/matcher.h"
+#include "mvkp/train/trainer.h"
+
+namespace mvkp::cli {
+
+// Adds --views, --locations, --clusters, --kernels, --seed, ... to a command.
+void AddTrainOptions(CLI::App* cmd, TrainOptions* o);
+// Adds --ratio, --dynamic-goal, --affine, --max-points, ... to a command.
+void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine);
+
+nlohmann::json HomographyJson(const MatchResult& r);  // 3x3 array or null
+nlohmann::json TimingJson(const MatchTiming& t);
+
+// Frame with the outline, inliers (green) and other matches (red).
+cv::Mat DrawMatch(const cv::Mat& frame_gray_or_bgr, const MatchResult& r);
+// Object and frame side by side, inlier lines, outline.
+cv::Mat DrawPair(const cv::Mat& object, const cv::Mat& frame, const MatchResult& r);
+
+// "out.png" with index 3 of several -> "out-3.png"; unchanged when count == 1.
+std::string IndexedPath(const std::string& path, int index, int count);
+
+// Progress line on stderr when it is a terminal.
+void Progress(const std::string& what, int done, int total);
+
+}  // namespace mvkp::cli

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages mvkp needs to build, test and run its demo.
+# Idempotent: only missing packages are installed; uses sudo when not root.
+set -euo pipefail
+pkgs=(
+  build-essential cmake pkg-config
+  libopencv-dev            # imgcodecs, imgproc, features2d, calib3d (OpenCV 4.6)
+  libgtest-dev googletest  # unit tests
+  libcli11-dev             # command line
+  nlohmann-json3-dev       # JSON output
+  python3 python3-numpy python3-opencv  # evaluation scripts (eval_pairs.py, contract-check)
+)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#pkgs[@]} packages present"
+  exit 0
+fi
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,152 @@
+#include "mvkp/describe/features.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+
+namespace mvkp {
+namespace {
+
+wht::ProjectorOptions ToProjector(const DescriberOptions& o) {
+  o.Check();
+  wht::ProjectorOptions p;
+  p.patch_size = o.patch_size;
+  p.dims = o.dims;
+  p.drop_dc = true;
+  return p;
+}
+
+inline float Bilinear(const cv::Mat& img, float x, float y) {
+  x = std::clamp(x, 0.f, float(img.cols - 1) - 1e-3f);
+  y = std::clamp(y, 0.f, float(img.rows - 1) - 1e-3f);
+  const int x0 = int(x), y0 = int(y);
+  const float fx = x - x0, fy = y - y0;
+  const float* r0 = img.ptr<float>(y0) + x0;
+  const float* r1 = img.ptr<float>(std::min(y0 + 1, img.rows - 1)) + x0;
+  const int dx = x0 + 1 < img.cols ? 1 : 0;
+  return (1 - fy) * ((1 - fx) * r0[0] + fx * r0[dx]) + fy * ((1 - fx) * r1[0] + fx * r1[dx]);
+}
+
+}  // namespace
+
+void DescriberOptions::Check() const {
+  Require(orientation_radius >= 2 && orientation_radius <= 64, ErrorCode::kInvalidArgument,
+          "describer: orientation radius must be in 2..64");
+}
+
+void FeatureOptions::Check() const {
+  Require(smooth_sigma >= 0.f && smooth_sigma <= 10.f, ErrorCode::kInvalidArgument,
+          "smoothing sigma must be in [0, 10]");
+  detector.Check();
+  describer.Check();
+}
+
+Describer::Describer(const DescriberOptions& options) : options_(options), projector_(ToProjector(options)) {
+  const int r = options_.orientation_radius;
+  umax_.resize(r + 1);
+  for (int v = 0; v <= r; ++v) umax_[v] = int(std::floor(std::sqrt(double(r * r - v * v)) + 0.5));
+}
+
+void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, float* out) const {
+  CV_Assert(smoothed.type() == CV_8UC1);
+  if (kps.empty()) return;
+  const int k = options_.patch_size, n = projector_.grid(), b = projector_.block();
+  const int K = projector_.dims();
+
+  // Block means, one per pixel: box filter of side b. A box at integer X has its
+  // centre at X - b/2 + (b-1)/2, hence the half-pixel shift below for even b.
+  cv::Mat box;
+  cv::boxFilter(smoothed, box, CV_32F, cv::Size(b, b), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
+  const float shift = float(b / 2) - float(b - 1) / 2.f;
+  std::vector<float> offs(n);
+  for (int j = 0; j < n; ++j) offs[j] = -k / 2.f + j * b + b / 2.f;
+
+  const int r = options_.orientation_radius;
+  std::vector<float> g(std::size_t(n) * n);
+  for (std::size_t i = 0; i < kps.size(); ++i) {
+    Keypoint& kp = kps[i];
+    float c = 1.f, s = 0.f;
+    if (options_.orient) {
+      const int px = int(std::lround(kp.x)), py = int(std::lround(kp.y));
+      double m10 = 0, m01 = 0;
+      if (px - r >= 0 && py - r >= 0 && px + r < smoothed.cols && py + r < smoothed.rows) {
+        for (int v = -r; v <= r; ++v) {
+          const std::uint8_t* row = smoothed.ptr<std::uint8_t>(py + v);
+          const int w = umax_[std::abs(v)];
+          int sum = 0, wsum = 0;
+          for (int u = -w; u <= w; ++u) {
+            const int val = row[px + u];
+            sum += val;
+            wsum += u * val;
+          }
+          m10 += wsum;
+          m01 += double(v) * sum;
+        }
+      } else {  // near the border: clamp reads
+        for (int v = -r; v <= r; ++v) {
+          const int yy = std::clamp(py + v, 0, smoothed.rows - 1);
+          const std::uint8_t* row = smoothed.ptr<std::uint8_t>(yy);
+          const int w = umax_[std::abs(v)];
+          for (int u = -w; u <= w; ++u) {
+            const int val = row[std::clamp(px + u, 0, smoothed.cols - 1)];
+            m10 += double(u) * val;
+            m01 += double(v) * val;
+          }
+        }
+      }
+      kp.angle = float(std::atan2(m01, m10));
+      c = std::cos(kp.angle);
+      s = std::sin(kp.angle);
+    } else {
+      kp.angle = 0.f;
+    }
+    // Sample the block means at the rotated block centres.
+    const float cx = kp.x - 0.5f + shift, cy = kp.y - 0.5f + shift;
+    double sum = 0, sum2 = 0;
+    for (int yi = 0; yi < n; ++yi) {
+      const float oy = offs[yi];
+      for (int xi = 0; xi < n; ++xi) {
+        const float ox = offs[xi];
+        const float v = Bilinear(box, cx + c * ox - s * oy, cy + s * ox + c * oy);
+        g[std::size_t(yi) * n + xi] = v;
+        sum += v;
+        sum2 += double(v) * v;
+      }
+    }
+    const double nn = double(n) * n;
+    const double mean = sum / nn;
+    const double var = std::max(0.0, sum2 / nn - mean * mean);
+    const float scale = float(1.0 / (std::max(std::sqrt(var), 0.5) * n));
+    float* d = out + i * std::size_t(K);
+    projector_.ProjectGrid(g.data(), d);
+    for (int q = 0; q < K; ++q) d[q] *= scale;
+  }
+}
+
+Features ExtractFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask) {
+  CV_Assert(gray.type() == CV_8UC1);
+  Features f;
+  Timer t;
+  cv::Mat smoothed;
+  if (options.smooth_sigma > 0.f)
+    cv::GaussianBlur(gray, smoothed, cv::Size(), options.smooth_sigma, options.smooth_sigma, cv::BORDER_REFLECT_101);
+  else
+    smoothed = gray;
+  f.smooth_ms = t.ElapsedMs();
+  t.Restart();
+  f.keypoints = DetectMinEigen(smoothed, options.detector, mask);
+  f.detect_ms = t.ElapsedMs();
+  t.Restart();
+  Describer describer(options.describer);
+  f.descriptors.create(int(f.keypoints.size()), describer.dims(), CV_32F);
+  if (!f.keypoints.empty()) describer.Compute(smoothed, f.keypoints, f.descriptors.ptr<float>());
+  f.describe_ms = t.ElapsedMs();
+  return f;
+}
+
+}  // namespace mvkp

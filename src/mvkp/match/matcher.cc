@@ -1,0 +1,149 @@
+#include "mvkp/match/matcher.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+#include "mvkp/describe/features.h"
+
+namespace mvkp {
+
+void MatchOptions::Check() const {
+  Require(max_points >= 4 && max_points <= 100000, ErrorCode::kInvalidArgument, "max points must be in 4..100000");
+  Require(ratio > 0.f && ratio <= 1.f, ErrorCode::kInvalidArgument, "ratio must be in (0, 1]");
+  Require(dynamic_goal >= 0, ErrorCode::kInvalidArgument, "dynamic goal must be >= 0");
+  Require(dynamic_checks >= 1 && dynamic_checks <= 1000, ErrorCode::kInvalidArgument, "dynamic checks must be in 1..1000");
+  Require(ratio_min > 0.f && ratio_min <= ratio_max && ratio_max <= 1.f, ErrorCode::kInvalidArgument,
+          "dynamic ratio bounds must satisfy 0 < min <= max <= 1");
+  Require(ransac_threshold > 0 && ransac_threshold <= 100, ErrorCode::kInvalidArgument, "RANSAC threshold must be in (0, 100]");
+  Require(ransac_iterations >= 1 && ransac_iterations <= 1000000, ErrorCode::kInvalidArgument, "RANSAC iterations must be in 1..1e6");
+  Require(ransac_confidence > 0 && ransac_confidence < 1, ErrorCode::kInvalidArgument, "RANSAC confidence must be in (0, 1)");
+  Require(min_inliers >= 4, ErrorCode::kInvalidArgument, "min inliers must be >= 4");
+}
+
+bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& q, double min_area) {
+  for (const auto& p : q)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || std::abs(p.x) > 1e6 || std::abs(p.y) > 1e6) return false;
+  int sign = 0;
+  for (int i = 0; i < 4; ++i) {
+    const cv::Point2f a = q[(i + 1) % 4] - q[i], b = q[(i + 2) % 4] - q[(i + 1) % 4];
+    const double cross = double(a.x) * b.y - double(a.y) * b.x;
+    const int s = cross > 0 ? 1 : (cross < 0 ? -1 : 0);
+    if (s == 0 || (sign != 0 && s != sign)) return false;
+    sign = s;
+  }
+  std::vector<cv::Point2f> poly(q.begin(), q.end());
+  return std::abs(cv::contourArea(poly)) >= min_area;
+}
+
+Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_ptr<KnnIndex> index)
+    : model_(model), options_(options), index_(std::move(index)) {
+  options_.Check();
+  model_.Validate("model");
+  if (!index_) index_ = MakeBruteForceIndex();
+  index_->Build(model_.descriptors.ptr<float>(), std::size_t(model_.descriptors.rows), model_.params.dims,
+                model_.labels.data());
+}
+
+MatchResult Matcher::Match(const cv::Mat& gray) const {
+  CV_Assert(gray.type() == CV_8UC1);
+  MatchResult r;
+  const ModelParams& p = model_.params;
+  FeatureOptions fo;
+  fo.smooth_sigma = p.smooth_sigma;
+  fo.detector.max_points = options_.max_points;
+  fo.detector.min_strength = p.min_strength;
+  fo.detector.relative_threshold = p.relative_threshold;
+  fo.detector.min_distance = p.min_distance;
+  fo.detector.block_size = p.block_size;
+  fo.describer.patch_size = p.patch_size;
+  fo.describer.dims = p.dims;
+  fo.describer.orient = p.orient;
+  fo.describer.orientation_radius = p.orientation_radius;
+  Features f = ExtractFeatures(gray, fo);
+  r.keypoints = int(f.keypoints.size());
+  r.time.smooth_ms = f.smooth_ms;
+  r.time.detect_ms = f.detect_ms;
+  r.time.describe_ms = f.describe_ms;
+
+  // Search + ratio test (on L2 distances; the index returns squared ones).
+  Timer t;
+  const int n = r.keypoints;
+  std::vector<Neighbor> nn(2 * std::size_t(n));
+  if (n > 0) index_->SearchTwoDistinctBatch(f.descriptors.ptr<float>(), std::size_t(n), nn.data());
+  float ratio = options_.ratio;
+  const int checks = options_.dynamic_goal > 0 ? options_.dynamic_checks : 1;
+  for (int i = 0; i < n; ++i) {
+    if (options_.dynamic_goal > 0 && i > 0 && i % std::max(1, n / checks) == 0) {
+      // Expected count so far if we are on track for the goal; move the ratio toward it.
+      const double expected = double(options_.dynamic_goal) * i / n;
+      const double have = double(r.matches.size());
+      if (have < 0.8 * expected) ratio = std::min(options_.ratio_max, ratio + 0.05f);
+      else if (have > 1.25 * expected) ratio = std::max(options_.ratio_min, ratio - 0.05f);
+    }
+    const Neighbor& a = nn[2 * i];
+    const Neighbor& b = nn[2 * i + 1];
+    if (a.id < 0) continue;
+    const float d1 = std::sqrt(a.distance);
+    const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
+    if (!(d1 < ratio * d2)) continue;
+    const auto& loc = model_.locations[a.label];
+    r.matches.push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, d1, a.label, false});
+  }
+  r.final_ratio = ratio;
+  r.time.search_ms = t.ElapsedMs();
+
+  // Geometric verification.
+  t.Restart();
+  const int minimal = options_.geometry == GeometryModel::kHomography ? 4 : 3;
+  if (int(r.matches.size()) >= std::max(minimal, options_.min_inliers)) {
+    std::vector<cv::Point2f> src, dst;
+    src.reserve(r.matches.size());
+    dst.reserve(r.matches.size());
+    for (const auto& m : r.matches) {
+      src.push_back(m.object);
+      dst.push_back(m.query);
+    }
+    std::vector<std::uint8_t> mask;
+    cv::Mat H;
+    if (options_.geometry == GeometryModel::kHomography) {
+      H = cv::findHomography(src, dst, cv::RANSAC, options_.ransac_threshold, mask, options_.ransac_iterations,
+                             options_.ransac_confidence);
+    } else {
+      cv::Mat A = cv::estimateAffine2D(src, dst, mask, cv::RANSAC, options_.ransac_threshold,
+                                       std::size_t(options_.ransac_iterations), options_.ransac_confidence, 10);
+      if (!A.empty()) {
+        H = cv::Mat::eye(3, 3, CV_64F);
+        A.copyTo(H.rowRange(0, 2));
+      }
+    }
+    if (!H.empty()) {
+      int inl = 0;
+      for (std::size_t i = 0; i < r.matches.size(); ++i) {
+        r.matches[i].inlier = i < mask.size() && mask[i];
+        inl += r.matches[i].inlier;
+      }
+      cv::Matx33d Hm(H.ptr<double>());
+      const float w = float(model_.object_width - 1), h = float(model_.object_height - 1);
+      std::vector<cv::Point2f> corners = {{0, 0}, {w, 0}, {w, h}, {0, h}}, out;
+      cv::perspectiveTransform(corners, out, cv::Mat(Hm));
+      std::array<cv::Point2f, 4> quad{out[0], out[1], out[2], out[3]};
+      if (inl >= options_.min_inliers && IsPlausibleOutline(quad)) {
+        r.found = true;
+        r.homography = Hm;
+        r.outline = quad;
+        r.inliers = inl;
+      } else {
+        for (auto& m : r.matches) m.inlier = false;
+      }
+    }
+  }
+  r.time.verify_ms = t.ElapsedMs();
+  return r;
+}
+
+}  // namespace mvkp

@@ -1,0 +1,82 @@
+// MVKP query (thesis §3.2.2-3.2.3, SPEC §3): detect and describe the frame
+// with the model's own feature settings, find for each query descriptor the
+// nearest model centre and the nearest centre of a DIFFERENT object location,
+// keep the pair if d1/d2 < ratio (optionally steering the ratio toward a goal
+// count as the frame is processed), and verify geometrically with RANSAC.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "mvkp/index/knn_index.h"
+#include "mvkp/model/model.h"
+
+namespace mvkp {
+
+enum class GeometryModel { kHomography, kAffine };
+
+struct MatchOptions {
+  int max_points = 500;          // strongest query points (thesis: ~500)
+  float ratio = 0.85f;           // distance-ratio test on distances (not squared); SPEC: 0.85 with orientation
+  int dynamic_goal = 0;          // > 0: steer the ratio toward this many kept matches (thesis §3.2.3)
+  int dynamic_checks = 10;       // how often the ratio is adjusted while processing the frame
+  float ratio_min = 0.6f;        // bounds for the dynamic ratio
+  float ratio_max = 0.95f;
+  GeometryModel geometry = GeometryModel::kHomography;
+  double ransac_threshold = 4.0; // reprojection error for an inlier (query pixels)
+  int ransac_iterations = 2000;
+  double ransac_confidence = 0.995;
+  int min_inliers = 10;          // fewer inliers: the target is not found
+  void Check() const;
+};
+
+struct Correspondence {
+  cv::Point2f object;  // object-image pixels
+  cv::Point2f query;   // query-frame pixels
+  float distance = 0;  // descriptor distance to the nearest centre (L2, not squared)
+  int location = -1;   // object location id in the model
+  bool inlier = false; // RANSAC inlier
+};
+
+struct MatchTiming {
+  double smooth_ms = 0, detect_ms = 0, describe_ms = 0, search_ms = 0, verify_ms = 0;
+  double total() const { return smooth_ms + detect_ms + describe_ms + search_ms + verify_ms; }
+};
+
+struct MatchResult {
+  bool found = false;
+  cv::Matx33d homography = cv::Matx33d::eye();  // maps object pixels to query pixels (valid if found)
+  std::array<cv::Point2f, 4> outline{};         // object corners in the query frame (valid if found)
+  std::vector<Correspondence> matches;          // after the ratio test, before RANSAC
+  int inliers = 0;
+  int keypoints = 0;                            // query points detected
+  float final_ratio = 0;                        // ratio in force at the end (differs when dynamic)
+  MatchTiming time;
+};
+
+class Matcher {
+ public:
+  // Builds the search index over the model's descriptors. The model is copied.
+  Matcher(const Model& model, const MatchOptions& options = {}, std::unique_ptr<KnnIndex> index = nullptr);
+
+  // Finds the model's target in an 8-bit grayscale frame.
+  MatchResult Match(const cv::Mat& gray) const;
+
+  const Model& model() const { return model_; }
+  const MatchOptions& options() const { return options_; }
+
+ private:
+  Model model_;
+  MatchOptions options_;
+  std::unique_ptr<KnnIndex> index_;
+};
+
+// True if the quadrilateral is convex, not self-intersecting, and of area >= min_area.
+bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& quad, double min_area = 64.0);
+
+}  // namespace mvkp

@@ -1,0 +1,108 @@
+#include "mvkp/train/trainer.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/synth/synth.h"
+#include "mvkp/train/kmeans.h"
+
+namespace mvkp {
+namespace {
+
+cv::Mat Sample(const char* name) {
+  cv::Mat m = cv::imread(std::string(MVKP_SOURCE_DIR) + "/samples/" + name, cv::IMREAD_GRAYSCALE);
+  EXPECT_FALSE(m.empty()) << name;
+  return m;
+}
+
+TEST(KMeans, SeparatesWellSeparatedClustersDeterministically) {
+  std::vector<float> pts;
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < 20; ++i) {
+      pts.push_back(c * 100.f + float(i % 5));
+      pts.push_back(-c * 50.f + float(i % 3));
+    }
+  std::vector<float> a, b;
+  KMeans(pts.data(), 60, 2, 3, 20, 1, a);
+  KMeans(pts.data(), 60, 2, 3, 20, 1, b);
+  EXPECT_EQ(a, b);
+  std::vector<float> xs = {a[0], a[2], a[4]};
+  std::sort(xs.begin(), xs.end());
+  EXPECT_NEAR(xs[0], 2.f, 0.5f);
+  EXPECT_NEAR(xs[1], 102.f, 0.5f);
+  EXPECT_NEAR(xs[2], 202.f, 0.5f);
+  KMeans(pts.data(), 2, 2, 5, 10, 1, a);  // fewer points than centres
+  EXPECT_EQ(a.size(), 4u);
+}
+
+TEST(Train, ProducesAStableReproducibleModel) {
+  const cv::Mat img = Sample("starry_night.jpg");
+  TrainOptions o;
+  o.views = 40;
+  o.locations = 100;
+  o.clusters = 10;
+  const Model m = Train(img, o);
+  EXPECT_EQ(m.object_width, img.cols);
+  EXPECT_EQ(int(m.locations.size()), 100);
+  EXPECT_EQ(m.descriptors.cols, 20);
+  EXPECT_LE(m.descriptors.rows, 100 * 10);
+  EXPECT_GE(m.descriptors.rows, 100 * 5);
+  for (std::size_t i = 1; i < m.locations.size(); ++i) EXPECT_GE(m.locations[i - 1].stability, m.locations[i].stability);
+  EXPECT_GE(m.locations[0].stability, 20);  // the best location is seen in half the views or more
+  for (const auto& l : m.locations) {
+    EXPECT_GE(l.x, 0); EXPECT_LT(l.x, img.cols);
+    EXPECT_GE(l.y, 0); EXPECT_LT(l.y, img.rows);
+  }
+  const Model again = Train(img, o);
+  EXPECT_EQ(cv::norm(m.descriptors, again.descriptors, cv::NORM_INF), 0.0);
+  o.seed = 7;
+  const Model other = Train(img, o);
+  EXPECT_TRUE(other.descriptors.rows != m.descriptors.rows ||
+              cv::norm(m.descriptors, other.descriptors, cv::NORM_INF) > 0.0);
+}
+
+TEST(Train, LocationsAreRealCornersOfTheObject) {
+  // A synthetic object whose corners we know: bright squares on a dark page.
+  cv::Mat img(240, 320, CV_8UC1, cv::Scalar(30));
+  std::vector<cv::Point> corners;
+  for (int y = 40; y < 200; y += 60)
+    for (int x = 40; x < 280; x += 60) {
+      cv::rectangle(img, cv::Rect(x, y, 30, 30), cv::Scalar(220), -1);
+      for (auto c : {cv::Point(x, y), cv::Point(x + 29, y), cv::Point(x, y + 29), cv::Point(x + 29, y + 29)}) corners.push_back(c);
+    }
+  TrainOptions o;
+  o.views = 40;
+  o.locations = 30;
+  o.clusters = 5;
+  const Model m = Train(img, o);
+  int near = 0;
+  for (const auto& l : m.locations) {
+    float best = 1e9f;
+    for (auto c : corners) best = std::min(best, std::hypot(l.x - c.x, l.y - c.y));
+    near += best < 3.0;
+  }
+  EXPECT_GE(near, int(m.locations.size() * 0.9));
+}
+
+TEST(Train, RefusesATargetWithoutTexture) {
+  cv::Mat flat(200, 300, CV_8UC1, cv::Scalar(120));
+  cv::rectangle(flat, cv::Rect(100, 80, 60, 40), cv::Scalar(130), -1);  // one faint box: 4 corners
+  try {
+    Train(flat, {});
+    FAIL() << "trained on a flat image";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kNoTexture);
+    EXPECT_NE(std::string(e.what()).find("too little texture"), std::string::npos);
+  }
+}
+
+TEST(Train, RejectsBadOptions) {
+  TrainOptions o;
+  o.views = 0;
+  EXPECT_THROW(Train(Sample("coffee.jpg"), o), Error);
+}
+
+}  // namespace
+}  // namespace mvkp

@@ -1,0 +1,233 @@
+#include "mvkp/train/trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+#include "mvkp/describe/features.h"
+#include "mvkp/synth/synth.h"
+#include "mvkp/train/kmeans.h"
+
+namespace mvkp {
+namespace {
+
+struct Detection {
+  int view;
+  float ox, oy;      // object coordinates (training resolution)
+  float radius;      // association radius in object pixels
+  int desc;          // row in the descriptor pool
+};
+
+}  // namespace
+
+void TrainOptions::Check() const {
+  auto in = [](double v, double lo, double hi) { return v >= lo && v <= hi; };
+  Require(in(views, 1, 5000), ErrorCode::kInvalidArgument, "views must be in 1..5000, got " + std::to_string(views));
+  Require(in(locations, 1, 100000), ErrorCode::kInvalidArgument, "locations must be in 1..100000, got " + std::to_string(locations));
+  Require(in(clusters, 1, 1000), ErrorCode::kInvalidArgument, "clusters must be in 1..1000, got " + std::to_string(clusters));
+  Require(in(kernels, 1, 1023), ErrorCode::kInvalidArgument, "kernels must be in 1..1023, got " + std::to_string(kernels));
+  Require(in(points_per_view, 10, 100000), ErrorCode::kInvalidArgument, "points per view must be in 10..100000");
+  Require(in(track_radius, 0.5, 20), ErrorCode::kInvalidArgument, "track radius must be in [0.5, 20]");
+  Require(in(view_noise, 0, 50), ErrorCode::kInvalidArgument, "view noise must be in [0, 50]");
+  Require(max_object_side == 0 || in(max_object_side, 64, 16384), ErrorCode::kInvalidArgument,
+          "max object side must be 0 or in 64..16384");
+  Require(in(min_locations, 1, 100000), ErrorCode::kInvalidArgument, "min locations must be >= 1");
+  Require(in(kmeans_iterations, 0, 1000), ErrorCode::kInvalidArgument, "k-means iterations must be in 0..1000");
+  Require(min_scale > 0 && max_scale >= min_scale && max_scale <= 10, ErrorCode::kInvalidArgument,
+          "scale range must satisfy 0 < min <= max <= 10");
+}
+
+Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
+  opt.Check();
+  CV_Assert(object_in.type() == CV_8UC1);
+  Timer total;
+
+  FeatureOptions fo;
+  fo.smooth_sigma = opt.smooth_sigma;
+  fo.detector.max_points = opt.points_per_view;
+  fo.describer.patch_size = opt.patch;
+  fo.describer.dims = opt.kernels;
+  fo.describer.orient = opt.orient;
+  fo.Check();
+  const int dims = opt.kernels;
+
+  // Train at a bounded size; locations are mapped back to the input's pixels.
+  cv::Mat object = object_in;
+  double to_input = 1.0;
+  const int side = std::max(object_in.cols, object_in.rows);
+  if (opt.max_object_side > 0 && side > opt.max_object_side) {
+    to_input = double(side) / opt.max_object_side;
+    cv::resize(object_in, object, cv::Size(int(std::lround(object_in.cols / to_input)),
+                                           int(std::lround(object_in.rows / to_input))),
+               0, 0, cv::INTER_AREA);
+  }
+
+  ViewSamplerOptions vso;
+  vso.min_scale = opt.min_scale;
+  vso.max_scale = opt.max_scale;
+  vso.seed = opt.seed;
+  const auto params = SampleAffineViews(opt.views, vso);
+  cv::RNG rng(opt.seed * 0x9E3779B97F4A7C15ull + 1);
+
+  std::vector<Detection> dets;
+  std::vector<float> pool;  // descriptors, dims floats each
+  const int margin = opt.patch / 2 + 4;
+  const double w = object.cols, h = object.rows;
+  for (int v = 0; v < opt.views; ++v) {
+    const cv::Matx22d A = AffineMatrix(params[v]);
+    // Place the warped object with a margin of background around it.
+    std::vector<cv::Point2d> c = {{0, 0}, {w, 0}, {w, h}, {0, h}};
+    double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
+    for (auto& p : c) {
+      const cv::Vec2d q = A * cv::Vec2d(p.x, p.y);
+      x0 = std::min(x0, q[0]); y0 = std::min(y0, q[1]);
+      x1 = std::max(x1, q[0]); y1 = std::max(y1, q[1]);
+    }
+    const double tx = -x0 + margin + params[v].t1, ty = -y0 + margin + params[v].t2;
+    const cv::Matx33d H(A(0, 0), A(0, 1), tx, A(1, 0), A(1, 1), ty, 0, 0, 1);
+    const cv::Size size(int(std::ceil(x1 - x0)) + 2 * margin + 4, int(std::ceil(y1 - y0)) + 2 * margin + 4);
+
+    cv::Mat view, mask;
+    WarpAntiAliased(object, H, size, view, &mask, int(rng.uniform(0, 256)));
+    if (opt.view_noise > 0) {
+      cv::Mat noise(size, CV_16SC1);
+      rng.fill(noise, cv::RNG::NORMAL, 0, opt.view_noise);
+      cv::Mat v16;
+      view.convertTo(v16, CV_16S);
+      v16 += noise;
+      v16.convertTo(view, CV_8U);
+    }
+    // Points on the object's artificial outline are not object features.
+    cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
+    Features f = ExtractFeatures(view, fo, mask);
+
+    const cv::Matx22d Ai = A.inv();
+    const float radius = float(opt.track_radius / std::sqrt(std::abs(cv::determinant(A))));
+    for (int i = 0; i < int(f.keypoints.size()); ++i) {
+      const auto& kp = f.keypoints[i];
+      const cv::Vec2d o = Ai * cv::Vec2d(kp.x - tx, kp.y - ty);
+      if (o[0] < 0 || o[1] < 0 || o[0] > w - 1 || o[1] > h - 1) continue;
+      dets.push_back({v, float(o[0]), float(o[1]), radius, int(pool.size() / dims)});
+      pool.insert(pool.end(), f.descriptors.ptr<float>(i), f.descriptors.ptr<float>(i) + dims);
+    }
+    if (opt.progress) opt.progress(v + 1, opt.views);
+  }
+
+  // Candidate locations: peaks of the detection density in object coordinates.
+  cv::Mat density = cv::Mat::zeros(object.size(), CV_32F);
+  for (const auto& d : dets) density.at<float>(int(std::lround(d.oy)), int(std::lround(d.ox))) += 1.f;
+  cv::GaussianBlur(density, density, cv::Size(), 1.0);
+  cv::Mat dil;
+  cv::dilate(density, dil, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)));
+  struct Cand {
+    float x, y, density;
+  };
+  std::vector<Cand> cands;
+  for (int y = 0; y < density.rows; ++y)
+    for (int x = 0; x < density.cols; ++x) {
+      const float v = density.at<float>(y, x);
+      if (v > 0.15f && v >= dil.at<float>(y, x)) cands.push_back({float(x), float(y), v});
+    }
+
+  // Associate each detection with the nearest candidate within its radius.
+  const int cell = 8;
+  const int gw = object.cols / cell + 1, gh = object.rows / cell + 1;
+  std::vector<std::vector<int>> grid(std::size_t(gw) * gh);
+  for (int i = 0; i < int(cands.size()); ++i)
+    grid[std::size_t(int(cands[i].y) / cell) * gw + int(cands[i].x) / cell].push_back(i);
+  // members[c]: (view, detection) with the closest detection per view.
+  std::vector<std::vector<int>> members(cands.size());
+  for (int di = 0; di < int(dets.size()); ++di) {
+    const auto& d = dets[di];
+    const int gx = int(d.ox) / cell, gy = int(d.oy) / cell;
+    const int reach = int(std::ceil(d.radius / cell)) + 1;
+    int arg = -1;
+    float bd = d.radius * d.radius;
+    for (int yy = std::max(0, gy - reach); yy <= std::min(gh - 1, gy + reach); ++yy)
+      for (int xx = std::max(0, gx - reach); xx <= std::min(gw - 1, gx + reach); ++xx)
+        for (int ci : grid[std::size_t(yy) * gw + xx]) {
+          const float dx = cands[ci].x - d.ox, dy = cands[ci].y - d.oy;
+          const float d2 = dx * dx + dy * dy;
+          if (d2 <= bd) { bd = d2; arg = ci; }
+        }
+    if (arg < 0) continue;
+    // One detection per view per location: keep the closest.
+    auto& m = members[arg];
+    bool replaced = false;
+    for (auto& e : m)
+      if (dets[e].view == d.view) {
+        const float ex = cands[arg].x - dets[e].ox, ey = cands[arg].y - dets[e].oy;
+        if (bd < ex * ex + ey * ey) e = di;
+        replaced = true;
+        break;
+      }
+    if (!replaced) m.push_back(di);
+  }
+
+  // Rank by stability (views in which the location was detected).
+  std::vector<int> order(cands.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    if (members[a].size() != members[b].size()) return members[a].size() > members[b].size();
+    return cands[a].density > cands[b].density;
+  });
+  const int min_stability = std::max(3, opt.views / 20);
+  int stable = 0;
+  for (int ci : order) stable += int(members[ci].size()) >= min_stability;
+  if (stable < opt.min_locations)
+    throw Error(ErrorCode::kNoTexture, "target has too little texture to train: " + std::to_string(stable) +
+                                           " stable interest points, at least " + std::to_string(opt.min_locations) +
+                                           " needed");
+
+  Model model;
+  model.object_width = object_in.cols;
+  model.object_height = object_in.rows;
+  std::vector<float> descs;
+  std::vector<std::int32_t> labels;
+  std::vector<float> samples, centres;
+  for (int ci : order) {
+    if (int(model.locations.size()) >= opt.locations) break;
+    if (int(members[ci].size()) < min_stability) break;
+    const int loc = int(model.locations.size());
+    model.locations.push_back({float((cands[ci].x + 0.5) * to_input - 0.5), float((cands[ci].y + 0.5) * to_input - 0.5),
+                               int(members[ci].size())});
+    samples.clear();
+    for (int di : members[ci]) {
+      const float* p = &pool[std::size_t(dets[di].desc) * dims];
+      samples.insert(samples.end(), p, p + dims);
+    }
+    KMeans(samples.data(), int(members[ci].size()), dims, opt.clusters, opt.kmeans_iterations,
+           opt.seed + 7919ull * std::uint64_t(loc), centres);
+    descs.insert(descs.end(), centres.begin(), centres.end());
+    for (std::size_t c = 0; c < centres.size() / dims; ++c) labels.push_back(loc);
+  }
+  model.descriptors = cv::Mat(int(labels.size()), dims, CV_32F, descs.data()).clone();
+  model.labels = labels;
+
+  ModelParams& p = model.params;
+  p.smooth_sigma = fo.smooth_sigma;
+  p.patch_size = fo.describer.patch_size;
+  p.dims = dims;
+  p.orient = fo.describer.orient;
+  p.orientation_radius = fo.describer.orientation_radius;
+  p.min_strength = fo.detector.min_strength;
+  p.relative_threshold = fo.detector.relative_threshold;
+  p.min_distance = fo.detector.min_distance;
+  p.block_size = fo.detector.block_size;
+  p.views = opt.views;
+  p.locations = opt.locations;
+  p.clusters = opt.clusters;
+  p.seed = opt.seed;
+  p.min_scale = float(opt.min_scale);
+  p.max_scale = float(opt.max_scale);
+  p.train_ms = total.ElapsedMs();
+  return model;
+}
+
+}  // namespace mvkp
