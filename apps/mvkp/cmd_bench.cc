@@ -9,6 +9,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 
+#include "baselines.h"
 #include "commands.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
@@ -38,38 +39,6 @@ double Median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
   return v[v.size() / 2];
 }
-
-// One OpenCV pipeline as a user would run it: object features prepared once;
-// per frame detectAndCompute, 2-NN brute-force matching, ratio 0.8, RANSAC.
-struct Baseline {
-  std::string name;
-  cv::Ptr<cv::Feature2D> f;
-  int norm = cv::NORM_L2;
-  std::vector<cv::KeyPoint> kobj;
-  cv::Mat dobj;
-  std::vector<double> ms;
-  int found = 0;
-
-  void Prepare(const cv::Mat& object) { f->detectAndCompute(object, cv::noArray(), kobj, dobj); }
-  void Frame(const cv::Mat& frame) {
-    Timer t;
-    std::vector<cv::KeyPoint> k;
-    cv::Mat d;
-    f->detectAndCompute(frame, cv::noArray(), k, d);
-    std::vector<std::vector<cv::DMatch>> knn;
-    if (!d.empty() && dobj.rows >= 2) cv::BFMatcher(norm).knnMatch(d, dobj, knn, 2);
-    std::vector<cv::Point2f> a, b;
-    for (auto& m : knn)
-      if (m.size() == 2 && m[0].distance < 0.8f * m[1].distance) {
-        a.push_back(kobj[m[0].trainIdx].pt);
-        b.push_back(k[m[0].queryIdx].pt);
-      }
-    cv::Mat mask, H;
-    if (a.size() >= 4) H = cv::findHomography(a, b, cv::RANSAC, 3.0, mask, 2000, 0.995);
-    ms.push_back(t.ElapsedMs());
-    found += !H.empty() && cv::countNonZero(mask) >= 10;
-  }
-};
 
 int RunBench(BenchArgs& a) {
   Require(a.repeat >= 1 && a.train_repeat >= 1, ErrorCode::kInvalidArgument, "--repeat and --train-repeat must be >= 1");
@@ -101,23 +70,25 @@ int RunBench(BenchArgs& a) {
       found += r == 0 && m.found;
     }
 
-  Baseline sift, orb;
-  sift.name = "opencv-sift";
-  sift.f = cv::SIFT::create(a.features);
-  sift.norm = cv::NORM_L2;
-  orb.name = "opencv-orb";
-  orb.f = cv::ORB::create(a.features);
-  orb.norm = cv::NORM_HAMMING;
-  for (Baseline* b : {&sift, &orb}) {
-    b->Prepare(object);
+  struct Side {
+    Baseline b;
+    std::vector<double> ms;
+    int found = 0;
+  };
+  std::vector<Side> sides;
+  sides.push_back({Baseline("sift", a.features), {}, 0});
+  sides.push_back({Baseline("orb", a.features), {}, 0});
+  for (Side& s : sides) {
+    s.b.Prepare(object);
     for (int r = 0; r < a.repeat; ++r)
       for (const auto& f : frames) {
-        const int before = b->found;
-        b->Frame(f);
-        if (r > 0) b->found = before;
+        const BaselineResult br = s.b.Frame(f);
+        s.ms.push_back(br.ms);
+        if (r == 0) s.found += br.found && std::count(br.inlier.begin(), br.inlier.end(), 1) >= 10;
       }
   }
-
+  Side& sift = sides[0];
+  Side& orb = sides[1];
   const double mv = Median(total), sv = Median(sift.ms), ov = Median(orb.ms);
   if (a.json) {
     nlohmann::json j = {

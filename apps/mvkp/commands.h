@@ -12,5 +12,6 @@ void RegisterMatch(CLI::App& app, int* exit_code);
 void RegisterPair(CLI::App& app, int* exit_code);
 void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
+void RegisterEval(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli

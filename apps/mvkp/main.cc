@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterPair(app, &code);
   mvkp::cli::RegisterSynth(app, &code);
   mvkp::cli::RegisterBench(app, &code);
+  mvkp::cli::RegisterEval(app, &code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -21,6 +21,57 @@ void DetectorOptions::Check() const {
   Require(block_size >= 2 && block_size <= 15, ErrorCode::kInvalidArgument, "detector: block_size must be in 2..15");
 }
 
+void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
+  CV_Assert(gray.type() == CV_8UC1);
+  const int W = gray.cols, H = gray.rows;
+  eig.create(H, W, CV_32F);
+  eig.setTo(0);
+  if (W < 5 || H < 5) return;
+  // Products of integer Sobel gradients, summed over 3 columns, kept for the
+  // last three rows; summing those gives the 3x3 structure tensor.
+  std::vector<std::int32_t> buf(std::size_t(9) * W, 0);
+  std::vector<std::int16_t> gx(W), gy(W);
+  std::vector<std::int32_t> pxx(W), pxy(W), pyy(W);
+  auto row_of = [&](int r, int k) { return &buf[(std::size_t(r % 3) * 3 + k) * W]; };
+  // OpenCV's normalisation for 8-bit input, aperture 3, block 3: 1 / (4 * 3 * 255).
+  const float s = 1.f / (4.f * 3.f * 255.f);
+  const float s2 = s * s;
+  for (int y = 1; y < H - 1; ++y) {
+    const std::uint8_t* a = gray.ptr<std::uint8_t>(y - 1);
+    const std::uint8_t* b = gray.ptr<std::uint8_t>(y);
+    const std::uint8_t* c = gray.ptr<std::uint8_t>(y + 1);
+    for (int x = 1; x < W - 1; ++x) {
+      gx[x] = std::int16_t((a[x + 1] - a[x - 1]) + 2 * (b[x + 1] - b[x - 1]) + (c[x + 1] - c[x - 1]));
+      gy[x] = std::int16_t((c[x - 1] - a[x - 1]) + 2 * (c[x] - a[x]) + (c[x + 1] - a[x + 1]));
+    }
+    for (int x = 1; x < W - 1; ++x) {
+      pxx[x] = std::int32_t(gx[x]) * gx[x];
+      pxy[x] = std::int32_t(gx[x]) * gy[x];
+      pyy[x] = std::int32_t(gy[x]) * gy[x];
+    }
+    std::int32_t* hxx = row_of(y, 0);
+    std::int32_t* hxy = row_of(y, 1);
+    std::int32_t* hyy = row_of(y, 2);
+    for (int x = 2; x < W - 2; ++x) {
+      hxx[x] = pxx[x - 1] + pxx[x] + pxx[x + 1];
+      hxy[x] = pxy[x - 1] + pxy[x] + pxy[x + 1];
+      hyy[x] = pyy[x - 1] + pyy[x] + pyy[x + 1];
+    }
+    if (y < 3) continue;
+    // Rows y-2, y-1, y are complete: the tensor for row y-1.
+    const std::int32_t *a0 = row_of(y - 2, 0), *a1 = row_of(y - 1, 0), *a2 = row_of(y, 0);
+    const std::int32_t *b0 = row_of(y - 2, 1), *b1 = row_of(y - 1, 1), *b2 = row_of(y, 1);
+    const std::int32_t *c0 = row_of(y - 2, 2), *c1 = row_of(y - 1, 2), *c2 = row_of(y, 2);
+    float* out = eig.ptr<float>(y - 1);
+    for (int x = 2; x < W - 2; ++x) {
+      const float A = float(a0[x] + a1[x] + a2[x]) * (0.5f * s2);
+      const float B = float(b0[x] + b1[x] + b2[x]) * s2;
+      const float C = float(c0[x] + c1[x] + c2[x]) * (0.5f * s2);
+      out[x] = (A + C) - std::sqrt((A - C) * (A - C) + B * B);
+    }
+  }
+}
+
 std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions& opt, const cv::Mat& mask) {
   opt.Check();
   CV_Assert(gray.type() == CV_8UC1);
@@ -29,7 +80,10 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
   if (gray.rows <= 2 * opt.border || gray.cols <= 2 * opt.border) return out;
 
   cv::Mat eig;
-  cv::cornerMinEigenVal(gray, eig, opt.block_size, 3, cv::BORDER_REFLECT_101);
+  if (opt.block_size == 3)
+    MinEigen3x3(gray, eig);
+  else
+    cv::cornerMinEigenVal(gray, eig, opt.block_size, 3, cv::BORDER_REFLECT_101);
   double maxv = 0;
   cv::minMaxLoc(eig, nullptr, &maxv, nullptr, nullptr, mask);
   const float thresh = std::max(opt.min_strength, float(maxv) * opt.relative_threshold);
@@ -52,7 +106,11 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
             v >= dn[x] && v >= dn[x + 1]))
         continue;
       if (m && !m[x]) continue;
-      cand.push_back({float(x), float(y), v, 0.f});
+      // Sub-pixel position: vertex of the parabola through the 3 responses per axis.
+      const float dxx = c[x - 1] - 2 * v + c[x + 1], dyy = up[x] - 2 * v + dn[x];
+      const float ox = dxx < 0 ? std::clamp(0.5f * (c[x - 1] - c[x + 1]) / dxx, -0.5f, 0.5f) : 0.f;
+      const float oy = dyy < 0 ? std::clamp(0.5f * (up[x] - dn[x]) / dyy, -0.5f, 0.5f) : 0.f;
+      cand.push_back({float(x) + ox, float(y) + oy, v, 0.f});
     }
   }
   std::sort(cand.begin(), cand.end(), [](const Keypoint& a, const Keypoint& b) {

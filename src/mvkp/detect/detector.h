@@ -29,6 +29,11 @@ struct DetectorOptions {
   void Check() const;                // throws mvkp::Error(kInvalidArgument)
 };
 
+// Minimum eigenvalue of the 3x3 structure tensor of Sobel gradients, in one
+// fused pass; equal to cv::cornerMinEigenVal(gray, eig, 3, 3) away from the
+// outermost two rows and columns, which are set to 0. Output: CV_32F.
+void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig);
+
 // Detects points on an 8-bit grayscale image (normally already smoothed).
 // If mask is non-empty (8-bit, same size), only pixels where mask != 0 count.
 std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions& options,

@@ -39,6 +39,19 @@ TEST(Detector, FindsCheckerboardCornersAndRespectsLimits) {
   EXPECT_EQ(DetectMinEigen(img, o).size(), 10u);
 }
 
+TEST(MinEigen, EqualsOpenCVAwayFromTheBorder) {
+  cv::Mat img(97, 131, CV_8UC1);
+  cv::RNG(4).fill(img, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(img, img, cv::Size(), 1.0);
+  cv::Mat ours, ref;
+  MinEigen3x3(img, ours);
+  cv::cornerMinEigenVal(img, ref, 3, 3);
+  double maxv;
+  cv::minMaxLoc(ref, nullptr, &maxv);
+  const cv::Rect inner(2, 2, img.cols - 4, img.rows - 4);
+  EXPECT_LT(cv::norm(ours(inner), ref(inner), cv::NORM_INF), 1e-4 * maxv);
+}
+
 TEST(Detector, FlatImageHasNoPoints) {
   cv::Mat flat(120, 120, CV_8UC1, cv::Scalar(128));
   EXPECT_TRUE(DetectMinEigen(flat, {}).empty());

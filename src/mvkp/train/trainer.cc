@@ -75,42 +75,84 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
   const auto params = SampleAffineViews(opt.views, vso);
   cv::RNG rng(opt.seed * 0x9E3779B97F4A7C15ull + 1);
 
+  // Anti-aliasing: the object blurred for a few shrink factors, computed once
+  // (a view that shrinks by s uses the level for the next s' <= s).
+  struct Level {
+    double scale;
+    cv::Mat image;
+  };
+  std::vector<Level> levels = {{1.0, object}};
+  for (double s : {0.85, 0.7, 0.55, 0.45, 0.35, 0.25}) {
+    if (s < opt.min_scale * 0.5) break;
+    const double sigma = 0.6 * std::sqrt(1.0 / (s * s) - 1.0);
+    cv::Mat b;
+    cv::GaussianBlur(object, b, cv::Size(), sigma, sigma, cv::BORDER_REFLECT_101);
+    levels.push_back({s, b});
+  }
+  // View noise: one Gaussian field, read at a random offset per view.
+  cv::Mat noise_field;
+  if (opt.view_noise > 0) {
+    noise_field.create(512, 512, CV_16SC1);
+    rng.fill(noise_field, cv::RNG::NORMAL, 0, opt.view_noise);
+  }
+
   std::vector<Detection> dets;
   std::vector<float> pool;  // descriptors, dims floats each
   const int margin = opt.patch / 2 + 4;
   const double w = object.cols, h = object.rows;
+  const float edge_margin = 4.f;  // points this close to the object's outline are dropped
   for (int v = 0; v < opt.views; ++v) {
     const cv::Matx22d A = AffineMatrix(params[v]);
     // Place the warped object with a margin of background around it.
-    std::vector<cv::Point2d> c = {{0, 0}, {w, 0}, {w, h}, {0, h}};
+    const std::vector<cv::Point2d> c = {{0, 0}, {w - 1, 0}, {w - 1, h - 1}, {0, h - 1}};
+    std::vector<cv::Point2d> q(4);
     double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
-    for (auto& p : c) {
-      const cv::Vec2d q = A * cv::Vec2d(p.x, p.y);
-      x0 = std::min(x0, q[0]); y0 = std::min(y0, q[1]);
-      x1 = std::max(x1, q[0]); y1 = std::max(y1, q[1]);
+    for (int k = 0; k < 4; ++k) {
+      const cv::Vec2d t = A * cv::Vec2d(c[k].x, c[k].y);
+      q[k] = {t[0], t[1]};
+      x0 = std::min(x0, t[0]); y0 = std::min(y0, t[1]);
+      x1 = std::max(x1, t[0]); y1 = std::max(y1, t[1]);
     }
     const double tx = -x0 + margin + params[v].t1, ty = -y0 + margin + params[v].t2;
-    const cv::Matx33d H(A(0, 0), A(0, 1), tx, A(1, 0), A(1, 1), ty, 0, 0, 1);
+    for (auto& p : q) p += cv::Point2d(tx, ty);
+    const cv::Matx23d M(A(0, 0), A(0, 1), tx, A(1, 0), A(1, 1), ty);
     const cv::Size size(int(std::ceil(x1 - x0)) + 2 * margin + 4, int(std::ceil(y1 - y0)) + 2 * margin + 4);
 
-    cv::Mat view, mask;
-    WarpAntiAliased(object, H, size, view, &mask, int(rng.uniform(0, 256)));
-    if (opt.view_noise > 0) {
-      cv::Mat noise(size, CV_16SC1);
-      rng.fill(noise, cv::RNG::NORMAL, 0, opt.view_noise);
+    const double shrink = std::sqrt(std::abs(cv::determinant(A)));
+    const Level* lv = &levels[0];
+    for (const auto& l : levels)
+      if (l.scale >= shrink * 0.95) lv = &l;
+    cv::Mat view;
+    cv::warpAffine(lv->image, view, cv::Mat(M), size, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+                   cv::Scalar(double(rng.uniform(0, 256))));
+    if (!noise_field.empty()) {
       cv::Mat v16;
       view.convertTo(v16, CV_16S);
-      v16 += noise;
+      const int ox = rng.uniform(0, 512), oy = rng.uniform(0, 512);
+      for (int y = 0; y < view.rows; ++y) {
+        std::int16_t* r = v16.ptr<std::int16_t>(y);
+        const std::int16_t* n = noise_field.ptr<std::int16_t>((y + oy) & 511);
+        for (int x = 0; x < view.cols; ++x) r[x] = std::int16_t(r[x] + n[(x + ox) & 511]);
+      }
       v16.convertTo(view, CV_8U);
     }
-    // Points on the object's artificial outline are not object features.
-    cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
-    Features f = ExtractFeatures(view, fo, mask);
+    Features f = ExtractFeatures(view, fo);
 
+    // Signed distance to each edge of the (convex) warped outline.
+    const double orient = (q[1] - q[0]).cross(q[2] - q[1]) > 0 ? 1.0 : -1.0;
+    auto inside = [&](double x, double y) {
+      for (int k = 0; k < 4; ++k) {
+        const cv::Point2d e = q[(k + 1) % 4] - q[k];
+        const double d = orient * e.cross(cv::Point2d(x, y) - q[k]) / std::hypot(e.x, e.y);
+        if (d < edge_margin) return false;
+      }
+      return true;
+    };
     const cv::Matx22d Ai = A.inv();
-    const float radius = float(opt.track_radius / std::sqrt(std::abs(cv::determinant(A))));
+    const float radius = float(opt.track_radius / shrink);
     for (int i = 0; i < int(f.keypoints.size()); ++i) {
       const auto& kp = f.keypoints[i];
+      if (!inside(kp.x, kp.y)) continue;
       const cv::Vec2d o = Ai * cv::Vec2d(kp.x - tx, kp.y - ty);
       if (o[0] < 0 || o[1] < 0 || o[0] > w - 1 || o[1] > h - 1) continue;
       dets.push_back({v, float(o[0]), float(o[1]), radius, int(pool.size() / dims)});
@@ -195,7 +237,15 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
     if (int(model.locations.size()) >= opt.locations) break;
     if (int(members[ci].size()) < min_stability) break;
     const int loc = int(model.locations.size());
-    model.locations.push_back({float((cands[ci].x + 0.5) * to_input - 0.5), float((cands[ci].y + 0.5) * to_input - 0.5),
+    // Sub-pixel location: mean of the member detections in object coordinates.
+    double sx = 0, sy = 0;
+    for (int di : members[ci]) {
+      sx += dets[di].ox;
+      sy += dets[di].oy;
+    }
+    sx /= double(members[ci].size());
+    sy /= double(members[ci].size());
+    model.locations.push_back({float((sx + 0.5) * to_input - 0.5), float((sy + 0.5) * to_input - 0.5),
                                int(members[ci].size())});
     samples.clear();
     for (int di : members[ci]) {
