@@ -5,6 +5,7 @@ set -euo pipefail
 pkgs=(
   build-essential cmake pkg-config
   libopencv-dev            # imgcodecs, imgproc, features2d, calib3d (OpenCV 4.6)
+  libjpeg-dev libpng-dev   # strict JPEG/PNG decoding (corrupt data is an error, not grey pixels)
   libgtest-dev googletest  # unit tests
   libcli11-dev             # command line
   nlohmann-json3-dev       # JSON output

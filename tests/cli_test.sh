@@ -191,22 +191,19 @@ for entry in "${BAD_IMAGES[@]}"; do
 done
 check "train wrote no model for any bad input" test ! -e "$T/bad.mvkp"
 
-# Found while writing this test; reported, not fixed yet.
-known_bug "OpenCV decoder error text leaks to stderr" \
-  check_bad_image "truncated ASCII PGM (P2)" "$D/truncated_p2.pgm"
-known_bug "'libpng error: ...' line leaks to stderr" \
-  check_bad_image "PNG with corrupt IDAT data" "$D/corrupt_idat.png"
-known_bug "accepted with exit 0, only a libjpeg warning on stderr" \
-  check_bad_image "truncated JPEG with an EOI marker appended" "$D/truncated_eoi.jpg"
+# Found while writing this test and fixed since: strict JPEG/PNG/PNM decoding.
+check_bad_image "truncated ASCII PGM (P2)" "$D/truncated_p2.pgm"
+check_bad_image "PNG with corrupt IDAT data" "$D/corrupt_idat.png"
+check_bad_image "truncated JPEG with an EOI marker appended" "$D/truncated_eoi.jpg"
 
 # --- 1b. targets without texture ---------------------------------------------
 
 for img in "$D/flat.png" "$D/faint_rect.png"; do
   name=$(basename "$img")
   expect_fail "train rejects textureless $name" "too little texture" "$MVKP" train -q "$img" -o "$T/flat.mvkp"
-  known_bug "message does not name the file" stderr_has "train $name: message names the file" "$img"
+  stderr_has "train $name: message names the file" "$img"
   expect_fail "pair rejects textureless $name as IMG1" "too little texture" "$MVKP" pair "$img" "$GOOD_IMG" --json
-  known_bug "message does not name the file" stderr_has "pair $name: message names the file" "$img"
+  stderr_has "pair $name: message names the file" "$img"
 done
 check "train wrote no model for a textureless target" test ! -e "$T/flat.mvkp"
 
@@ -247,10 +244,8 @@ stderr_has "flipped byte: message mentions the checksum" "checksum"
 expect_fail "match rejects model format version 99" "$T/newer.mvkp" "$MVKP" match "$T/newer.mvkp" "$GOOD_IMG"
 stderr_has "version 99: message says 'newer'" "newer"
 expect_fail "match rejects model with payload length 2^64-1" "$T/huge_len.mvkp" "$MVKP" match "$T/huge_len.mvkp" "$GOOD_IMG"
-known_bug "size arithmetic wraps: claims the header declares 23 bytes" \
-  stderr_lacks "payload length 2^64-1: message gives a sane declared size" "header declares 23)"
-known_bug "LoadModel accepts it; the per-query error does not name the model" \
-  expect_fail "match rejects checksummed model with impossible dimension 2000" "$T/dims2000.mvkp" \
+stderr_lacks "payload length 2^64-1: message gives a sane declared size" "header declares 23)"
+expect_fail "match rejects checksummed model with impossible dimension 2000" "$T/dims2000.mvkp" \
   "$MVKP" match "$T/dims2000.mvkp" "$GOOD_IMG"
 
 # --- 1d. bad options ---------------------------------------------------------
@@ -262,7 +257,7 @@ expect_reject "pair --kernels 0" "$MVKP" pair "$GOOD_IMG" "$GOOD_IMG" --kernels 
 expect_reject "match --ratio 2" "$MVKP" match "$MODEL" "$GOOD_IMG" --ratio 2
 expect_reject "pair --ratio 2" "$MVKP" pair "$GOOD_IMG" "$GOOD_IMG" --ratio 2
 expect_reject "unknown subcommand" "$MVKP" frobnicate
-known_bug "says 'A subcommand is required'" stderr_has "unknown subcommand: message names it" "frobnicate"
+stderr_has "unknown subcommand: message names it" "frobnicate"
 expect_reject "no arguments" "$MVKP"
 expect_reject "train without -o" "$MVKP" train "$GOOD_IMG"
 expect_reject "match without a query" "$MVKP" match "$MODEL"

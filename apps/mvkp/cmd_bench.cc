@@ -51,7 +51,7 @@ int RunBench(BenchArgs& a) {
   Model model;
   for (int i = 0; i < a.train_repeat; ++i) {
     Timer t;
-    model = Train(object, a.train);
+    model = TrainNamed(a.image, object, a.train);
     train_ms.push_back(t.ElapsedMs());
   }
   const std::size_t model_bytes = SerializeModel(model).size();

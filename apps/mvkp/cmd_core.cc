@@ -43,7 +43,7 @@ int RunTrain(TrainArgs& a) {
   const cv::Mat img = LoadImageGray(a.image);
   if (!a.quiet) a.opt.progress = [](int d, int t) { Progress("training: view", d, t); };
   Timer t;
-  const Model model = Train(img, a.opt);
+  const Model model = TrainNamed(a.image, img, a.opt);
   const double ms = t.ElapsedMs();
   SaveModel(model, a.output);
   const auto bytes = std::filesystem::file_size(a.output);
@@ -100,7 +100,7 @@ int RunPair(PairArgs& a) {
   const cv::Mat img1 = LoadImageGray(a.image1);
   const cv::Mat img2 = LoadImageGray(a.image2);
   if (a.affine) a.match.geometry = GeometryModel::kAffine;
-  const Model model = Train(img1, a.train);
+  const Model model = TrainNamed(a.image1, img1, a.train);
   const Matcher matcher(model, a.match);
   const MatchResult r = matcher.Match(img2);
   const double total_ms = total.ElapsedMs();

@@ -119,7 +119,7 @@ int RunEval(EvalArgs& a) {
       const cv::Mat obj = LoadImageGray(p.img1);
       sizes[p.img1] = obj.size();
       Timer t;
-      matchers[p.img1] = std::make_unique<Matcher>(Train(obj, a.train), a.match);
+      matchers[p.img1] = std::make_unique<Matcher>(TrainNamed(p.img1, obj, a.train), a.match);
       train_ms.push_back(t.ElapsedMs());
       for (const auto& b : a.baselines) {
         bases[p.img1].push_back(std::make_unique<Baseline>(b));

@@ -25,6 +25,15 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterSynth(app, &code);
   mvkp::cli::RegisterBench(app, &code);
   mvkp::cli::RegisterEval(app, &code);
+  // CLI11 reports "A subcommand is required" for a misspelt one; name it instead.
+  if (argc > 1 && argv[1][0] != '-') {
+    bool known = false;
+    for (const auto* sub : app.get_subcommands([](const CLI::App*) { return true; })) known |= sub->get_name() == argv[1];
+    if (!known) {
+      std::fprintf(stderr, "mvkp: unknown command '%s' (see 'mvkp --help')\n", argv[1]);
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -7,6 +7,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/core/error.h"
+
 namespace mvkp::cli {
 
 void AddTrainOptions(CLI::App* cmd, TrainOptions* o) {
@@ -19,6 +21,9 @@ void AddTrainOptions(CLI::App* cmd, TrainOptions* o) {
   cmd->add_option("--max-scale", o->max_scale, "largest view scale lambda")->capture_default_str();
   cmd->add_option("--points-per-view", o->points_per_view, "detections kept per training view")->capture_default_str();
   cmd->add_option("--max-object-side", o->max_object_side, "train larger targets at this size (0: never)")->capture_default_str();
+  cmd->add_option("--view-blur", o->view_blur, "max Gaussian blur sigma of training views")->capture_default_str();
+  cmd->add_option("--view-noise", o->view_noise, "noise sigma of training views (grey levels)")->capture_default_str();
+  cmd->add_option("--track-radius", o->track_radius, "view pixels within which detections form one track")->capture_default_str();
   cmd->add_flag("!--no-orient", o->orient, "thesis-literal patches: no orientation normalisation");
 }
 
@@ -41,6 +46,15 @@ nlohmann::json HomographyJson(const MatchResult& r) {
 nlohmann::json TimingJson(const MatchTiming& t) {
   return {{"detect", t.smooth_ms + t.detect_ms}, {"describe", t.describe_ms}, {"search", t.search_ms},
           {"verify", t.verify_ms}, {"query", t.total()}};
+}
+
+Model TrainNamed(const std::string& path, const cv::Mat& gray, const TrainOptions& options) {
+  try {
+    return Train(gray, options);
+  } catch (const Error& e) {
+    if (e.code() == ErrorCode::kNoTexture) throw Error(e.code(), path + ": " + e.what());
+    throw;
+  }
 }
 
 static cv::Mat ToBgr(const cv::Mat& m) {

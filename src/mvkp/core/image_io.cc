@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "mvkp/core/error.h"
+#include "mvkp/core/internal/decode.h"
 
 namespace mvkp {
 namespace {
@@ -145,12 +146,24 @@ cv::Mat Load(const std::string& path, int flags, const ImageLimits& lim) {
   if (h.width || h.height) CheckDims(path, h.width, h.height, lim);
   if (!h.complete) Bad(path, h.incomplete);
   cv::Mat img;
-  try {
-    img = cv::imdecode(buf, flags);
-  } catch (const cv::Exception& e) {
-    Bad(path, std::string("cannot decode image: ") + e.err);
+  std::string err;
+  const bool gray = flags == cv::IMREAD_GRAYSCALE;
+  bool handled = true, ok = false;
+  if (h.format == "jpeg") ok = internal::DecodeJpeg(buf.data(), buf.size(), gray, img, err);
+  else if (h.format == "png") ok = internal::DecodePng(buf.data(), buf.size(), gray, img, err);
+  else if (h.format == "pnm") {
+    ok = internal::DecodePnm(buf.data(), buf.size(), gray, img, err);
+    handled = ok || !err.empty();
+  } else handled = false;
+  if (handled && !ok) Bad(path, err);
+  if (!handled) {
+    try {
+      img = cv::imdecode(buf, flags);
+    } catch (const cv::Exception& e) {
+      Bad(path, std::string("cannot decode image: ") + e.err);
+    }
+    if (img.empty()) Bad(path, "cannot decode image (corrupt or truncated " + h.format + " data)");
   }
-  if (img.empty()) Bad(path, "cannot decode image (corrupt or truncated " + h.format + " data)");
   CheckDims(path, img.cols, img.rows, lim);
   if (img.depth() != CV_8U) {
     cv::Mat tmp;

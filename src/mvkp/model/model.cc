@@ -80,9 +80,11 @@ std::uint32_t Crc32(const std::uint8_t* data, std::size_t size) {
 
 void Model::Validate(const std::string& name) const {
   const int m = descriptors.rows;
-  if (params.dims < 1 || params.dims > 4096) Bad(name, "invalid descriptor dimension " + std::to_string(params.dims));
   if (params.patch_size < 4 || params.patch_size > 256 || (params.patch_size & (params.patch_size - 1)))
     Bad(name, "invalid patch size " + std::to_string(params.patch_size));
+  if (params.dims < 1 || params.dims > params.patch_size * params.patch_size - 1)
+    Bad(name, "invalid descriptor dimension " + std::to_string(params.dims) + " for patch size " +
+                  std::to_string(params.patch_size));
   if (!(params.smooth_sigma >= 0.f && params.smooth_sigma <= 10.f)) Bad(name, "invalid smoothing sigma");
   if (params.orientation_radius < 2 || params.orientation_radius > 64) Bad(name, "invalid orientation radius");
   if (params.block_size < 2 || params.block_size > 15) Bad(name, "invalid detector block size");
@@ -158,8 +160,8 @@ Model DeserializeModel(const std::uint8_t* data, std::size_t size, const std::st
     Bad(name, "model format version " + std::to_string(version) + " is newer than this mvkp reads (" +
                   std::to_string(kModelFormatVersion) + "); upgrade mvkp or retrain");
   if (payload > size - kHeaderBytes || size - kHeaderBytes - payload < 4)
-    Bad(name, "truncated model file (" + std::to_string(size) + " bytes, header declares " +
-                  std::to_string(payload + kHeaderBytes + 4) + ")");
+    Bad(name, "truncated model file (" + std::to_string(size) + " bytes; header declares a " +
+                  std::to_string(payload) + "-byte payload)");
   if (size - kHeaderBytes - payload > 4) Bad(name, "corrupt model (trailing bytes after the checksum)");
   const std::uint8_t* pl = data + kHeaderBytes;
   std::uint32_t crc;

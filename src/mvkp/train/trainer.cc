@@ -28,13 +28,14 @@ struct Detection {
 
 void TrainOptions::Check() const {
   auto in = [](double v, double lo, double hi) { return v >= lo && v <= hi; };
-  Require(in(views, 1, 5000), ErrorCode::kInvalidArgument, "views must be in 1..5000, got " + std::to_string(views));
+  Require(in(views, 10, 5000), ErrorCode::kInvalidArgument, "views must be in 10..5000, got " + std::to_string(views));
   Require(in(locations, 1, 100000), ErrorCode::kInvalidArgument, "locations must be in 1..100000, got " + std::to_string(locations));
   Require(in(clusters, 1, 1000), ErrorCode::kInvalidArgument, "clusters must be in 1..1000, got " + std::to_string(clusters));
   Require(in(kernels, 1, 1023), ErrorCode::kInvalidArgument, "kernels must be in 1..1023, got " + std::to_string(kernels));
   Require(in(points_per_view, 10, 100000), ErrorCode::kInvalidArgument, "points per view must be in 10..100000");
   Require(in(track_radius, 0.5, 20), ErrorCode::kInvalidArgument, "track radius must be in [0.5, 20]");
   Require(in(view_noise, 0, 50), ErrorCode::kInvalidArgument, "view noise must be in [0, 50]");
+  Require(in(view_blur, 0, 10), ErrorCode::kInvalidArgument, "view blur must be in [0, 10]");
   Require(max_object_side == 0 || in(max_object_side, 64, 16384), ErrorCode::kInvalidArgument,
           "max object side must be 0 or in 64..16384");
   Require(in(min_locations, 1, 100000), ErrorCode::kInvalidArgument, "min locations must be >= 1");
@@ -125,6 +126,10 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
     cv::Mat view;
     cv::warpAffine(lv->image, view, cv::Mat(M), size, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
                    cv::Scalar(double(rng.uniform(0, 256))));
+    if (opt.view_blur > 0) {
+      const double sigma = rng.uniform(0.0, double(opt.view_blur));
+      if (sigma > 0.3) cv::GaussianBlur(view, view, cv::Size(), sigma, sigma, cv::BORDER_REFLECT_101);
+    }
     if (!noise_field.empty()) {
       cv::Mat v16;
       view.convertTo(v16, CV_16S);
