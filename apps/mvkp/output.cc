@@ -31,6 +31,7 @@ void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
   cmd->add_option("--ratio", o->ratio, "distance-ratio threshold d1/d2")->capture_default_str();
   cmd->add_option("--dynamic-goal", o->dynamic_goal, "steer the ratio toward this many matches (0: fixed ratio)")->capture_default_str();
   cmd->add_option("--max-points", o->max_points, "strongest query points")->capture_default_str();
+  cmd->add_option("--half-res-points", o->half_res_points, "extra points detected at half resolution (0: off)")->capture_default_str();
   cmd->add_option("--ransac-threshold", o->ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
   cmd->add_option("--min-inliers", o->min_inliers, "fewer inliers: target not found")->capture_default_str();
   cmd->add_flag("--affine", *affine, "fit an affine transform instead of a homography");

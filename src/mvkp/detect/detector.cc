@@ -27,11 +27,12 @@ void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
   eig.create(H, W, CV_32F);
   eig.setTo(0);
   if (W < 5 || H < 5) return;
-  // Products of integer Sobel gradients, summed over 3 columns, kept for the
-  // last three rows; summing those gives the 3x3 structure tensor.
-  std::vector<std::int32_t> buf(std::size_t(9) * W, 0);
-  std::vector<std::int16_t> gx(W), gy(W);
-  std::vector<std::int32_t> pxx(W), pxy(W), pyy(W);
+  // Products of Sobel gradients summed over 3 columns, kept for the last three
+  // rows; summing those gives the 3x3 structure tensor. Float arithmetic is
+  // exact here (|g| <= 1020, so sums of 9 products stay below 2^24) and
+  // vectorises with SSE2, unlike 32-bit integer multiplies.
+  std::vector<float> buf(std::size_t(9) * W, 0.f);
+  std::vector<float> gx(W), gy(W), pxx(W), pxy(W), pyy(W);
   auto row_of = [&](int r, int k) { return &buf[(std::size_t(r % 3) * 3 + k) * W]; };
   // OpenCV's normalisation for 8-bit input, aperture 3, block 3: 1 / (4 * 3 * 255).
   const float s = 1.f / (4.f * 3.f * 255.f);
@@ -41,17 +42,17 @@ void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
     const std::uint8_t* b = gray.ptr<std::uint8_t>(y);
     const std::uint8_t* c = gray.ptr<std::uint8_t>(y + 1);
     for (int x = 1; x < W - 1; ++x) {
-      gx[x] = std::int16_t((a[x + 1] - a[x - 1]) + 2 * (b[x + 1] - b[x - 1]) + (c[x + 1] - c[x - 1]));
-      gy[x] = std::int16_t((c[x - 1] - a[x - 1]) + 2 * (c[x] - a[x]) + (c[x + 1] - a[x + 1]));
+      gx[x] = float((a[x + 1] - a[x - 1]) + 2 * (b[x + 1] - b[x - 1]) + (c[x + 1] - c[x - 1]));
+      gy[x] = float((c[x - 1] - a[x - 1]) + 2 * (c[x] - a[x]) + (c[x + 1] - a[x + 1]));
     }
     for (int x = 1; x < W - 1; ++x) {
-      pxx[x] = std::int32_t(gx[x]) * gx[x];
-      pxy[x] = std::int32_t(gx[x]) * gy[x];
-      pyy[x] = std::int32_t(gy[x]) * gy[x];
+      pxx[x] = gx[x] * gx[x];
+      pxy[x] = gx[x] * gy[x];
+      pyy[x] = gy[x] * gy[x];
     }
-    std::int32_t* hxx = row_of(y, 0);
-    std::int32_t* hxy = row_of(y, 1);
-    std::int32_t* hyy = row_of(y, 2);
+    float* hxx = row_of(y, 0);
+    float* hxy = row_of(y, 1);
+    float* hyy = row_of(y, 2);
     for (int x = 2; x < W - 2; ++x) {
       hxx[x] = pxx[x - 1] + pxx[x] + pxx[x + 1];
       hxy[x] = pxy[x - 1] + pxy[x] + pxy[x + 1];
@@ -59,14 +60,14 @@ void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
     }
     if (y < 3) continue;
     // Rows y-2, y-1, y are complete: the tensor for row y-1.
-    const std::int32_t *a0 = row_of(y - 2, 0), *a1 = row_of(y - 1, 0), *a2 = row_of(y, 0);
-    const std::int32_t *b0 = row_of(y - 2, 1), *b1 = row_of(y - 1, 1), *b2 = row_of(y, 1);
-    const std::int32_t *c0 = row_of(y - 2, 2), *c1 = row_of(y - 1, 2), *c2 = row_of(y, 2);
+    const float *a0 = row_of(y - 2, 0), *a1 = row_of(y - 1, 0), *a2 = row_of(y, 0);
+    const float *b0 = row_of(y - 2, 1), *b1 = row_of(y - 1, 1), *b2 = row_of(y, 1);
+    const float *c0 = row_of(y - 2, 2), *c1 = row_of(y - 1, 2), *c2 = row_of(y, 2);
     float* out = eig.ptr<float>(y - 1);
     for (int x = 2; x < W - 2; ++x) {
-      const float A = float(a0[x] + a1[x] + a2[x]) * (0.5f * s2);
-      const float B = float(b0[x] + b1[x] + b2[x]) * s2;
-      const float C = float(c0[x] + c1[x] + c2[x]) * (0.5f * s2);
+      const float A = (a0[x] + a1[x] + a2[x]) * (0.5f * s2);
+      const float B = (b0[x] + b1[x] + b2[x]) * s2;
+      const float C = (c0[x] + c1[x] + c2[x]) * (0.5f * s2);
       out[x] = (A + C) - std::sqrt((A - C) * (A - C) + B * B);
     }
   }

@@ -14,6 +14,9 @@ namespace mvkp {
 
 void MatchOptions::Check() const {
   Require(max_points >= 4 && max_points <= 100000, ErrorCode::kInvalidArgument, "max points must be in 4..100000");
+  Require(half_res_points >= 0 && half_res_points <= 100000, ErrorCode::kInvalidArgument,
+          "half-resolution points must be in 0..100000");
+  Require(retry_below_inliers >= 0, ErrorCode::kInvalidArgument, "retry threshold must be >= 0");
   Require(ratio > 0.f && ratio <= 1.f, ErrorCode::kInvalidArgument, "ratio must be in (0, 1]");
   Require(dynamic_goal >= 0, ErrorCode::kInvalidArgument, "dynamic goal must be >= 0");
   Require(dynamic_checks >= 1 && dynamic_checks <= 1000, ErrorCode::kInvalidArgument, "dynamic checks must be in 1..1000");
@@ -49,13 +52,12 @@ Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_pt
                 model_.labels.data());
 }
 
-MatchResult Matcher::Match(const cv::Mat& gray) const {
-  CV_Assert(gray.type() == CV_8UC1);
-  MatchResult r;
-  const ModelParams& p = model_.params;
+namespace {
+
+FeatureOptions QueryFeatureOptions(const ModelParams& p, int max_points) {
   FeatureOptions fo;
   fo.smooth_sigma = p.smooth_sigma;
-  fo.detector.max_points = options_.max_points;
+  fo.detector.max_points = max_points;
   fo.detector.min_strength = p.min_strength;
   fo.detector.relative_threshold = p.relative_threshold;
   fo.detector.min_distance = p.min_distance;
@@ -64,24 +66,26 @@ MatchResult Matcher::Match(const cv::Mat& gray) const {
   fo.describer.dims = p.dims;
   fo.describer.orient = p.orient;
   fo.describer.orientation_radius = p.orientation_radius;
-  Features f = ExtractFeatures(gray, fo);
-  r.keypoints = int(f.keypoints.size());
-  r.time.smooth_ms = f.smooth_ms;
-  r.time.detect_ms = f.detect_ms;
-  r.time.describe_ms = f.describe_ms;
+  return fo;
+}
 
-  // Search + ratio test (on L2 distances; the index returns squared ones).
+}  // namespace
+
+// Nearest centre and nearest centre of another location for each descriptor,
+// then the ratio test (on L2 distances; the index returns squared ones).
+void Matcher::SearchAndFilter(const Features& f, std::size_t first, MatchResult& r) const {
   Timer t;
-  const int n = r.keypoints;
+  const int n = int(f.keypoints.size() - first);
   std::vector<Neighbor> nn(2 * std::size_t(n));
-  if (n > 0) index_->SearchTwoDistinctBatch(f.descriptors.ptr<float>(), std::size_t(n), nn.data());
+  if (n > 0) index_->SearchTwoDistinctBatch(f.descriptors.ptr<float>(int(first)), std::size_t(n), nn.data());
   float ratio = options_.ratio;
   const int checks = options_.dynamic_goal > 0 ? options_.dynamic_checks : 1;
+  const std::size_t kept_before = r.matches.size();
   for (int i = 0; i < n; ++i) {
     if (options_.dynamic_goal > 0 && i > 0 && i % std::max(1, n / checks) == 0) {
       // Expected count so far if we are on track for the goal; move the ratio toward it.
       const double expected = double(options_.dynamic_goal) * i / n;
-      const double have = double(r.matches.size());
+      const double have = double(r.matches.size() - kept_before);
       if (have < 0.8 * expected) ratio = std::min(options_.ratio_max, ratio + 0.05f);
       else if (have > 1.25 * expected) ratio = std::max(options_.ratio_min, ratio - 0.05f);
     }
@@ -92,13 +96,18 @@ MatchResult Matcher::Match(const cv::Mat& gray) const {
     const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
     if (!(d1 < ratio * d2)) continue;
     const auto& loc = model_.locations[a.label];
-    r.matches.push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, d1, a.label, false});
+    const auto& kp = f.keypoints[first + i];
+    r.matches.push_back({{loc.x, loc.y}, {kp.x, kp.y}, d1, a.label, false});
   }
   r.final_ratio = ratio;
-  r.time.search_ms = t.ElapsedMs();
+  r.time.search_ms += t.ElapsedMs();
+}
 
-  // Geometric verification.
-  t.Restart();
+void Matcher::Verify(MatchResult& r) const {
+  Timer t;
+  r.found = false;
+  r.inliers = 0;
+  for (auto& m : r.matches) m.inlier = false;
   const int minimal = options_.geometry == GeometryModel::kHomography ? 4 : 3;
   if (int(r.matches.size()) >= std::max(minimal, options_.min_inliers)) {
     std::vector<cv::Point2f> src, dst;
@@ -123,10 +132,7 @@ MatchResult Matcher::Match(const cv::Mat& gray) const {
     }
     if (!H.empty()) {
       int inl = 0;
-      for (std::size_t i = 0; i < r.matches.size(); ++i) {
-        r.matches[i].inlier = i < mask.size() && mask[i];
-        inl += r.matches[i].inlier;
-      }
+      for (std::size_t i = 0; i < mask.size() && i < r.matches.size(); ++i) inl += mask[i] != 0;
       cv::Matx33d Hm(H.ptr<double>());
       const float w = float(model_.object_width - 1), h = float(model_.object_height - 1);
       std::vector<cv::Point2f> corners = {{0, 0}, {w, 0}, {w, h}, {0, h}}, out;
@@ -137,12 +143,52 @@ MatchResult Matcher::Match(const cv::Mat& gray) const {
         r.homography = Hm;
         r.outline = quad;
         r.inliers = inl;
-      } else {
-        for (auto& m : r.matches) m.inlier = false;
+        for (std::size_t i = 0; i < mask.size() && i < r.matches.size(); ++i) r.matches[i].inlier = mask[i] != 0;
       }
     }
   }
-  r.time.verify_ms = t.ElapsedMs();
+  r.time.verify_ms += t.ElapsedMs();
+}
+
+MatchResult Matcher::Match(const cv::Mat& gray) const {
+  CV_Assert(gray.type() == CV_8UC1);
+  MatchResult r;
+  FeatureOptions fo = QueryFeatureOptions(model_.params, options_.max_points);
+  Features f = ExtractFeatures(gray, fo);
+  r.keypoints = int(f.keypoints.size());
+  r.time.smooth_ms = f.smooth_ms;
+  r.time.detect_ms = f.detect_ms;
+  r.time.describe_ms = f.describe_ms;
+  SearchAndFilter(f, 0, r);
+  Verify(r);
+  if ((r.found && r.inliers >= options_.retry_below_inliers) || options_.half_res_points <= 0 || gray.cols < 64 ||
+      gray.rows < 64)
+    return r;
+
+  // Not found, or weakly: the target may appear larger than the trained view
+  // range. Add points from half resolution, verify again, keep the better.
+  const MatchResult first = r;
+  Timer th;
+  cv::Mat half;
+  cv::resize(gray, half, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+  r.time.smooth_ms += th.ElapsedMs();
+  fo.detector.max_points = options_.half_res_points;
+  Features g = ExtractFeatures(half, fo);
+  for (auto& k : g.keypoints) {  // half-resolution pixel centres at full resolution
+    k.x = 2 * k.x + 0.5f;
+    k.y = 2 * k.y + 0.5f;
+  }
+  r.time.smooth_ms += g.smooth_ms;
+  r.time.detect_ms += g.detect_ms;
+  r.time.describe_ms += g.describe_ms;
+  r.keypoints += int(g.keypoints.size());
+  SearchAndFilter(g, 0, r);
+  Verify(r);
+  if (first.found && r.inliers <= first.inliers) {
+    MatchTiming t = r.time;
+    r = first;
+    r.time = t;
+  }
   return r;
 }
 

@@ -18,10 +18,15 @@
 
 namespace mvkp {
 
+struct Features;
+
 enum class GeometryModel { kHomography, kAffine };
 
 struct MatchOptions {
   int max_points = 500;          // strongest query points (thesis: ~500)
+  int half_res_points = 250;     // when not found at full resolution, retry with this many more
+                                 // points from half resolution (targets larger than trained); 0: off
+  int retry_below_inliers = 40;  // also retry at half resolution when found with fewer inliers
   float ratio = 0.85f;           // distance-ratio test on distances (not squared); SPEC: 0.85 with orientation
   int dynamic_goal = 0;          // > 0: steer the ratio toward this many kept matches (thesis §3.2.3)
   int dynamic_checks = 10;       // how often the ratio is adjusted while processing the frame
@@ -71,6 +76,9 @@ class Matcher {
   const MatchOptions& options() const { return options_; }
 
  private:
+  void SearchAndFilter(const Features& f, std::size_t first, MatchResult& r) const;
+  void Verify(MatchResult& r) const;
+
   Model model_;
   MatchOptions options_;
   std::unique_ptr<KnnIndex> index_;

@@ -131,15 +131,12 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
       if (sigma > 0.3) cv::GaussianBlur(view, view, cv::Size(), sigma, sigma, cv::BORDER_REFLECT_101);
     }
     if (!noise_field.empty()) {
-      cv::Mat v16;
-      view.convertTo(v16, CV_16S);
       const int ox = rng.uniform(0, 512), oy = rng.uniform(0, 512);
       for (int y = 0; y < view.rows; ++y) {
-        std::int16_t* r = v16.ptr<std::int16_t>(y);
+        std::uint8_t* r = view.ptr<std::uint8_t>(y);
         const std::int16_t* n = noise_field.ptr<std::int16_t>((y + oy) & 511);
-        for (int x = 0; x < view.cols; ++x) r[x] = std::int16_t(r[x] + n[(x + ox) & 511]);
+        for (int x = 0; x < view.cols; ++x) r[x] = cv::saturate_cast<std::uint8_t>(r[x] + n[(x + ox) & 511]);
       }
-      v16.convertTo(view, CV_8U);
     }
     Features f = ExtractFeatures(view, fo);
 
