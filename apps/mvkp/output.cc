@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <map>
 
 #include <opencv2/imgproc.hpp>
 
@@ -35,6 +36,11 @@ void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
   cmd->add_option("--ransac-threshold", o->ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
   cmd->add_option("--min-inliers", o->min_inliers, "fewer inliers: target not found")->capture_default_str();
   cmd->add_flag("--affine", *affine, "fit an affine transform instead of a homography");
+  const std::map<std::string, RobustMethod> methods = {{"ransac", RobustMethod::kRansac}, {"fast", RobustMethod::kFast},
+                                                       {"accurate", RobustMethod::kAccurate}, {"magsac", RobustMethod::kMagsac}};
+  cmd->add_option("--robust", o->robust, "robust estimator: ransac | fast | accurate | magsac")
+      ->transform(CLI::CheckedTransformer(methods, CLI::ignore_case))
+      ->default_str("accurate");
 }
 
 nlohmann::json HomographyJson(const MatchResult& r) {

@@ -29,6 +29,7 @@ class BruteForceIndex final : public KnnIndex {
       labels_[i] = labels ? labels[i] : std::int32_t(i);
     }
     kernel_ = internal::BestL2Blocks8();
+    two_ = internal::BestTwoDistinct();
   }
 
   std::size_t size() const override { return n_; }
@@ -51,24 +52,11 @@ class BruteForceIndex final : public KnnIndex {
     }
   }
 
-  void SearchTwoDistinct(const float* q, Neighbor out[2]) const override {
-    out[0] = out[1] = Neighbor{};
-    if (n_ == 0) return;
-    const float* dist = Distances(q);
-    Neighbor a, b;  // a: nearest; b: nearest with a label != a.label
-    for (std::size_t i = 0; i < n_; ++i) {
-      const float d = dist[i];
-      if (d >= b.distance) continue;
-      const std::int32_t lab = labels_[i];
-      if (d < a.distance) {
-        if (lab != a.label) b = a;
-        a = {std::int32_t(i), lab, d};
-      } else if (lab != a.label) {
-        b = {std::int32_t(i), lab, d};
-      }
-    }
-    out[0] = a;
-    out[1] = b;
+  void SearchTwoDistinct(const float* q, Neighbor out[2], float ratio) const override {
+    internal::TopTwo t = internal::EmptyTopTwo(ratio);
+    if (n_ > 0) two_(blocks_.data(), labels_.data(), nblocks_, q, dim_, 0, t);
+    out[0] = t.id1 < 0 ? Neighbor{} : Neighbor{t.id1, t.lab1, t.d1};
+    out[1] = t.id2 < 0 ? Neighbor{} : Neighbor{t.id2, t.lab2, t.d2};
   }
 
  private:
@@ -86,6 +74,7 @@ class BruteForceIndex final : public KnnIndex {
   std::vector<float> blocks_;
   std::vector<std::int32_t> labels_;
   internal::L2Blocks8Fn kernel_ = nullptr;
+  internal::TwoDistinctFn two_ = nullptr;
 };
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "mvkp/index/knn_index.h"
 
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -20,6 +21,26 @@ TEST(L2Kernels, SimdEqualsScalarOnIntegerData) {
       internal::L2Blocks8Scalar(blocks.data(), nb, q.data(), dim, a.data());
       internal::L2Blocks8Avx2(blocks.data(), nb, q.data(), dim, b.data());
       EXPECT_EQ(a, b) << "dim " << dim;
+    }
+}
+
+TEST(L2Kernels, TwoDistinctSimdEqualsScalarOnIntegerData) {
+  if (!internal::CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937 rng(5);
+  for (int dim = 1; dim <= 37; ++dim)
+    for (std::size_t nb : {1u, 3u, 40u}) {
+      std::vector<float> blocks(nb * dim * 8), q(dim);
+      std::vector<std::int32_t> labels(nb * 8);
+      for (auto& v : blocks) v = float(int(rng() % 21) - 10);
+      for (auto& v : q) v = float(int(rng() % 21) - 10);
+      for (auto& l : labels) l = std::int32_t(rng() % 6) - 1;  // includes -1 padding lanes
+      internal::TopTwo a = internal::EmptyTopTwo(), b = internal::EmptyTopTwo();
+      internal::TwoDistinctScalar(blocks.data(), labels.data(), nb, q.data(), dim, 100, a);
+      internal::TwoDistinctAvx2(blocks.data(), labels.data(), nb, q.data(), dim, 100, b);
+      EXPECT_EQ(a.id1, b.id1) << dim;
+      EXPECT_EQ(a.id2, b.id2) << dim;
+      EXPECT_EQ(a.d1, b.d1);
+      EXPECT_EQ(a.d2, b.d2);
     }
 }
 
@@ -78,6 +99,24 @@ TEST(BruteForce, KnnAndTwoDistinctMatchANaiveScan) {
       }
     }
   }
+}
+
+TEST(BruteForce, RatioHintKeepsTheNearestAndTheTestOutcome) {
+  const Data d = Random(500, 20, 40, 11), q = Random(200, 20, 1, 12);
+  auto index = MakeBruteForceIndex();
+  index->Build(d.x.data(), 500, 20, d.labels.data());
+  for (float ratio : {0.6f, 0.8f, 0.95f})
+    for (int i = 0; i < q.n; ++i) {
+      Neighbor exact[2], hinted[2];
+      index->SearchTwoDistinct(&q.x[i * 20], exact);
+      index->SearchTwoDistinct(&q.x[i * 20], hinted, ratio);
+      EXPECT_EQ(exact[0].id, hinted[0].id);
+      const bool pass_exact = std::sqrt(exact[0].distance) < ratio * std::sqrt(exact[1].distance);
+      const bool pass_hinted = std::sqrt(hinted[0].distance) < ratio * std::sqrt(hinted[1].distance);
+      EXPECT_EQ(pass_exact, pass_hinted);
+      EXPECT_GE(hinted[1].distance, exact[1].distance);
+      if (!pass_exact) EXPECT_EQ(exact[1].id, hinted[1].id);
+    }
 }
 
 TEST(BruteForce, BatchEqualsSingle) {

@@ -38,11 +38,16 @@ class KnnIndex {
 
   // out[0]: the nearest vector; out[1]: the nearest vector whose label differs
   // from out[0].label (id -1 when every vector has that label).
-  virtual void SearchTwoDistinct(const float* query, Neighbor out[2]) const = 0;
+  //
+  // ratio > 0 serves a ratio test sqrt(d1) < ratio * sqrt(d2): the search may
+  // then stop looking once no vector can change the test's outcome. out[0] and
+  // the outcome stay exact; out[1] is exact whenever the test fails, and may
+  // be farther than the true second neighbour (never nearer) when it passes.
+  virtual void SearchTwoDistinct(const float* query, Neighbor out[2], float ratio = 0.f) const = 0;
 
   // Batched form: nq queries (row-major), out holds 2*nq entries.
-  virtual void SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neighbor* out) const {
-    for (std::size_t i = 0; i < nq; ++i) SearchTwoDistinct(queries + i * std::size_t(dim()), out + 2 * i);
+  virtual void SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neighbor* out, float ratio = 0.f) const {
+    for (std::size_t i = 0; i < nq; ++i) SearchTwoDistinct(queries + i * std::size_t(dim()), out + 2 * i, ratio);
   }
 };
 

@@ -1,5 +1,7 @@
 #include "mvkp/index/internal/l2_kernels.h"
 
+#include <cmath>
+
 namespace mvkp::internal {
 
 void L2Blocks8Scalar(const float* blocks, std::size_t nblocks, const float* q, int dim, float* out) {
@@ -10,11 +12,31 @@ void L2Blocks8Scalar(const float* blocks, std::size_t nblocks, const float* q, i
       const float qd = q[d];
       for (int l = 0; l < kLanes; ++l) {
         const float diff = blk[d * kLanes + l] - qd;
-        acc[l] += diff * diff;
+        acc[l] = std::fma(diff, diff, acc[l]);  // as the SIMD kernels do: bit-identical
       }
     }
     for (int l = 0; l < kLanes; ++l) out[b * kLanes + l] = acc[l];
   }
+}
+
+TopTwo EmptyTopTwo(float ratio) {
+  const float inf = std::numeric_limits<float>::infinity();
+  return {inf, inf, -1, -1, -1, -1, ratio * ratio};
+}
+
+void TwoDistinctScalar(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
+                       std::int32_t first_id, TopTwo& t) {
+  float d[kLanes];
+  for (std::size_t b = 0; b < nblocks; ++b) {
+    L2Blocks8Scalar(blocks + b * std::size_t(dim) * kLanes, 1, q, dim, d);
+    for (int l = 0; l < kLanes; ++l)
+      TopTwoOffer(t, d[l], first_id + std::int32_t(b * kLanes + l), labels[b * kLanes + l]);
+  }
+}
+
+TwoDistinctFn BestTwoDistinct() {
+  static const TwoDistinctFn fn = CpuHasAvx2() ? &TwoDistinctAvx2 : &TwoDistinctScalar;
+  return fn;
 }
 
 bool CpuHasAvx2() {

@@ -9,19 +9,43 @@ namespace mvkp::internal {
 void L2Blocks8Avx2(const float* blocks, std::size_t nblocks, const float* q, int dim, float* out) {
   for (std::size_t b = 0; b < nblocks; ++b) {
     const float* blk = blocks + b * std::size_t(dim) * kLanes;
-    __m256 acc0 = _mm256_setzero_ps(), acc1 = _mm256_setzero_ps();
-    int d = 0;
-    for (; d + 1 < dim; d += 2) {
-      const __m256 d0 = _mm256_sub_ps(_mm256_loadu_ps(blk + d * kLanes), _mm256_set1_ps(q[d]));
-      const __m256 d1 = _mm256_sub_ps(_mm256_loadu_ps(blk + (d + 1) * kLanes), _mm256_set1_ps(q[d + 1]));
-      acc0 = _mm256_fmadd_ps(d0, d0, acc0);
-      acc1 = _mm256_fmadd_ps(d1, d1, acc1);
+    __m256 acc = _mm256_setzero_ps();
+    for (int d = 0; d < dim; ++d) {
+      const __m256 x = _mm256_sub_ps(_mm256_loadu_ps(blk + d * kLanes), _mm256_set1_ps(q[d]));
+      acc = _mm256_fmadd_ps(x, x, acc);
     }
-    if (d < dim) {
-      const __m256 d0 = _mm256_sub_ps(_mm256_loadu_ps(blk + d * kLanes), _mm256_set1_ps(q[d]));
-      acc0 = _mm256_fmadd_ps(d0, d0, acc0);
+    _mm256_storeu_ps(out + b * kLanes, acc);
+  }
+}
+
+void TwoDistinctAvx2(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
+                     std::int32_t first_id, TopTwo& t) {
+  // Full distances without early exits: at these dimensions a mispredicted
+  // "abandon this block" branch costs more than finishing the block. The
+  // only branch, "some lane beats the bound", is rarely taken. Accumulation
+  // is sequential in dimension order with FMA, exactly as the scalar
+  // reference, so both give bit-identical distances.
+  float bound_s = t.Bound();
+  __m256 bound = _mm256_set1_ps(bound_s);
+  for (std::size_t b = 0; b < nblocks; ++b) {
+    const float* blk = blocks + b * std::size_t(dim) * kLanes;
+    __m256 acc = _mm256_setzero_ps();
+    for (int d = 0; d < dim; ++d) {
+      const __m256 x = _mm256_sub_ps(_mm256_loadu_ps(blk + d * kLanes), _mm256_set1_ps(q[d]));
+      acc = _mm256_fmadd_ps(x, x, acc);
     }
-    _mm256_storeu_ps(out + b * kLanes, _mm256_add_ps(acc0, acc1));
+    int mask = _mm256_movemask_ps(_mm256_cmp_ps(acc, bound, _CMP_LT_OQ));
+    if (__builtin_expect(mask == 0, 1)) continue;
+    alignas(32) float dist[kLanes];
+    _mm256_store_ps(dist, acc);
+    const std::int32_t* lab = labels + b * kLanes;
+    while (mask) {
+      const int l = __builtin_ctz(unsigned(mask));
+      mask &= mask - 1;
+      TopTwoOffer(t, dist[l], first_id + std::int32_t(b * kLanes + l), lab[l]);
+    }
+    bound_s = t.Bound();
+    bound = _mm256_set1_ps(bound_s);
   }
 }
 

@@ -77,7 +77,8 @@ void Matcher::SearchAndFilter(const Features& f, std::size_t first, MatchResult&
   Timer t;
   const int n = int(f.keypoints.size() - first);
   std::vector<Neighbor> nn(2 * std::size_t(n));
-  if (n > 0) index_->SearchTwoDistinctBatch(f.descriptors.ptr<float>(int(first)), std::size_t(n), nn.data());
+  const float hint = options_.dynamic_goal > 0 ? options_.ratio_max : options_.ratio;
+  if (n > 0) index_->SearchTwoDistinctBatch(f.descriptors.ptr<float>(int(first)), std::size_t(n), nn.data(), hint);
   float ratio = options_.ratio;
   const int checks = options_.dynamic_goal > 0 ? options_.dynamic_checks : 1;
   const std::size_t kept_before = r.matches.size();
@@ -103,6 +104,16 @@ void Matcher::SearchAndFilter(const Features& f, std::size_t first, MatchResult&
   r.time.search_ms += t.ElapsedMs();
 }
 
+int CvMethod(RobustMethod m) {
+  switch (m) {
+    case RobustMethod::kRansac: return cv::RANSAC;
+    case RobustMethod::kFast: return cv::USAC_FAST;
+    case RobustMethod::kMagsac: return cv::USAC_MAGSAC;
+    case RobustMethod::kAccurate: break;
+  }
+  return cv::USAC_ACCURATE;
+}
+
 void Matcher::Verify(MatchResult& r) const {
   Timer t;
   r.found = false;
@@ -120,10 +131,10 @@ void Matcher::Verify(MatchResult& r) const {
     std::vector<std::uint8_t> mask;
     cv::Mat H;
     if (options_.geometry == GeometryModel::kHomography) {
-      H = cv::findHomography(src, dst, cv::RANSAC, options_.ransac_threshold, mask, options_.ransac_iterations,
+      H = cv::findHomography(src, dst, CvMethod(options_.robust), options_.ransac_threshold, mask, options_.ransac_iterations,
                              options_.ransac_confidence);
     } else {
-      cv::Mat A = cv::estimateAffine2D(src, dst, mask, cv::RANSAC, options_.ransac_threshold,
+      cv::Mat A = cv::estimateAffine2D(src, dst, mask, CvMethod(options_.robust), options_.ransac_threshold,
                                        std::size_t(options_.ransac_iterations), options_.ransac_confidence, 10);
       if (!A.empty()) {
         H = cv::Mat::eye(3, 3, CV_64F);

@@ -22,6 +22,11 @@ struct Features;
 
 enum class GeometryModel { kHomography, kAffine };
 
+// Robust estimators from OpenCV's calib3d. kAccurate (USAC with graph-cut
+// local optimisation) measured best overall: more frames within 5 px than
+// classic RANSAC and ~2.5x faster on outlier-heavy frames (README).
+enum class RobustMethod { kRansac, kFast, kAccurate, kMagsac };
+
 struct MatchOptions {
   int max_points = 500;          // strongest query points (thesis: ~500)
   int half_res_points = 250;     // when not found at full resolution, retry with this many more
@@ -33,6 +38,7 @@ struct MatchOptions {
   float ratio_min = 0.6f;        // bounds for the dynamic ratio
   float ratio_max = 0.95f;
   GeometryModel geometry = GeometryModel::kHomography;
+  RobustMethod robust = RobustMethod::kAccurate;
   double ransac_threshold = 4.0; // reprojection error for an inlier (query pixels)
   int ransac_iterations = 2000;
   double ransac_confidence = 0.995;

@@ -3,6 +3,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <algorithm>
+#include <limits>
 
 namespace mvkp::internal {
 
@@ -13,6 +16,51 @@ constexpr int kLanes = 8;
 void L2Blocks8Scalar(const float* blocks, std::size_t nblocks, const float* q, int dim, float* out);
 // The same with AVX2+FMA; call only when CpuHasAvx2().
 void L2Blocks8Avx2(const float* blocks, std::size_t nblocks, const float* q, int dim, float* out);
+
+// Running state of a "nearest, and nearest with another label" search.
+struct TopTwo {
+  float d1, d2;            // squared distances
+  std::int32_t id1, id2;   // -1 when unset
+  std::int32_t lab1, lab2;
+  // Squared ratio r^2 of a ratio test d1 < r * d2, or 0. With r > 0 the scan
+  // may skip vectors at distance >= d1 / r^2: the nearest neighbour and the
+  // outcome of the test stay exact, but d2 may be reported larger than the
+  // true second distance when the test passes.
+  float ratio2;
+  float Bound() const { return ratio2 > 0 ? std::min(d2, d1 / ratio2) : d2; }
+};
+TopTwo EmptyTopTwo(float ratio = 0.f);
+
+// Scans `nblocks` blocks of 8 vectors (labels in the same order, -1 for
+// padding lanes) and updates t exactly as a plain scan in id order would.
+// The AVX2 version abandons a block once its partial distance over the
+// leading dimensions reaches t.d2 (partial sums of squares only grow, so the
+// result is unchanged). `first_id` is the id of the first lane.
+void TwoDistinctScalar(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
+                       std::int32_t first_id, TopTwo& t);
+void TwoDistinctAvx2(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
+                     std::int32_t first_id, TopTwo& t);
+using TwoDistinctFn = void (*)(const float*, const std::int32_t*, std::size_t, const float*, int, std::int32_t, TopTwo&);
+TwoDistinctFn BestTwoDistinct();
+
+// Candidate update shared by both kernels.
+inline void TopTwoOffer(TopTwo& t, float d, std::int32_t id, std::int32_t lab) {
+  if (d >= t.Bound() || lab < 0) return;
+  if (d < t.d1) {
+    if (lab != t.lab1) {
+      t.d2 = t.d1;
+      t.id2 = t.id1;
+      t.lab2 = t.lab1;
+    }
+    t.d1 = d;
+    t.id1 = id;
+    t.lab1 = lab;
+  } else if (lab != t.lab1) {
+    t.d2 = d;
+    t.id2 = id;
+    t.lab2 = lab;
+  }
+}
 
 bool CpuHasAvx2();
 
