@@ -16,7 +16,10 @@ echo
 echo "== 3. find the target in each frame"
 "$mvkp" match "$out/starry_night.mvkp" "$out"/frames/view_*.png --draw "$out/match.png"
 echo
-echo "== 4. speed against OpenCV SIFT and ORB on the same frames (single thread)"
+echo "== 4. accuracy against the known homographies, with OpenCV SIFT and ORB on the same frames"
+"$mvkp" eval "$out/frames/manifest.txt" --baselines sift,orb
+echo
+echo "== 5. speed against OpenCV SIFT and ORB on the same frames (single thread)"
 "$mvkp" bench "$here/samples/starry_night.jpg" "$out"/frames/view_*.png --repeat 3 --train-repeat 1
 echo
 echo "drawings: $out/match-*.png   (green outline = found target, green dots = inliers)"
