@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -12,8 +13,9 @@ namespace {
 using internal::kLanes;
 
 // Vectors are kept in blocks of 8, transposed, so that one block's distances
-// to a query are dim fused multiply-adds on 8 lanes. Padding lanes hold a huge
-// value so they never win.
+// to a query are dim fused multiply-adds on 8 lanes. The two-distinct search
+// uses |x|^2 + |q|^2 - 2 x.q with precomputed norms and four queries per pass.
+// Padding lanes have label -1 and norm +inf, so they never win.
 class BruteForceIndex final : public KnnIndex {
  public:
   void Build(const float* data, std::size_t n, int dim, const std::int32_t* labels) override {
@@ -28,8 +30,10 @@ class BruteForceIndex final : public KnnIndex {
       for (int d = 0; d < dim; ++d) blocks_[(b * dim + d) * kLanes + l] = data[i * dim + d];
       labels_[i] = labels ? labels[i] : std::int32_t(i);
     }
+    norms_.assign(nblocks_ * kLanes, std::numeric_limits<float>::infinity());
+    for (std::size_t i = 0; i < n; ++i) norms_[i] = internal::SquaredNorm(data + i * dim, dim);
     kernel_ = internal::BestL2Blocks8();
-    two_ = internal::BestTwoDistinct();
+    two_ = internal::BestTwoDistinctNorm();
   }
 
   std::size_t size() const override { return n_; }
@@ -53,10 +57,27 @@ class BruteForceIndex final : public KnnIndex {
   }
 
   void SearchTwoDistinct(const float* q, Neighbor out[2], float ratio) const override {
-    internal::TopTwo t = internal::EmptyTopTwo(ratio);
-    if (n_ > 0) two_(blocks_.data(), labels_.data(), nblocks_, q, dim_, 0, t);
-    out[0] = t.id1 < 0 ? Neighbor{} : Neighbor{t.id1, t.lab1, t.d1};
-    out[1] = t.id2 < 0 ? Neighbor{} : Neighbor{t.id2, t.lab2, t.d2};
+    SearchTwoDistinctBatch(q, 1, out, ratio);
+  }
+
+  // Four queries per pass over the data: each stored row is loaded once for all four.
+  void SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neighbor* out, float ratio) const override {
+    for (std::size_t first = 0; first < nq; first += 4) {
+      const int m = int(std::min<std::size_t>(4, nq - first));
+      const float* q = queries + first * std::size_t(dim_);
+      internal::TopTwo t[4];
+      float qn[4];
+      for (int k = 0; k < m; ++k) {
+        t[k] = internal::EmptyTopTwo(ratio);
+        qn[k] = internal::SquaredNorm(q + std::size_t(k) * dim_, dim_);
+      }
+      if (n_ > 0) two_(blocks_.data(), norms_.data(), labels_.data(), nblocks_, q, qn, m, dim_, t);
+      for (int k = 0; k < m; ++k) {
+        Neighbor* o = out + 2 * (first + k);
+        o[0] = t[k].id1 < 0 ? Neighbor{} : Neighbor{t[k].id1, t[k].lab1, t[k].d1};
+        o[1] = t[k].id2 < 0 ? Neighbor{} : Neighbor{t[k].id2, t[k].lab2, t[k].d2};
+      }
+    }
   }
 
  private:
@@ -72,9 +93,10 @@ class BruteForceIndex final : public KnnIndex {
   std::size_t n_ = 0, nblocks_ = 0;
   int dim_ = 0;
   std::vector<float> blocks_;
+  std::vector<float> norms_;  // |x|^2 per lane, +inf for padding
   std::vector<std::int32_t> labels_;
   internal::L2Blocks8Fn kernel_ = nullptr;
-  internal::TwoDistinctFn two_ = nullptr;
+  internal::TwoDistinctNormFn two_ = nullptr;
 };
 
 }  // namespace

@@ -24,24 +24,69 @@ TEST(L2Kernels, SimdEqualsScalarOnIntegerData) {
     }
 }
 
-TEST(L2Kernels, TwoDistinctSimdEqualsScalarOnIntegerData) {
+TEST(L2Kernels, TwoDistinctNormSimdEqualsScalarOnIntegerData) {
   if (!internal::CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
   std::mt19937 rng(5);
   for (int dim = 1; dim <= 37; ++dim)
-    for (std::size_t nb : {1u, 3u, 40u}) {
-      std::vector<float> blocks(nb * dim * 8), q(dim);
-      std::vector<std::int32_t> labels(nb * 8);
-      for (auto& v : blocks) v = float(int(rng() % 21) - 10);
-      for (auto& v : q) v = float(int(rng() % 21) - 10);
-      for (auto& l : labels) l = std::int32_t(rng() % 6) - 1;  // includes -1 padding lanes
-      internal::TopTwo a = internal::EmptyTopTwo(), b = internal::EmptyTopTwo();
-      internal::TwoDistinctScalar(blocks.data(), labels.data(), nb, q.data(), dim, 100, a);
-      internal::TwoDistinctAvx2(blocks.data(), labels.data(), nb, q.data(), dim, 100, b);
-      EXPECT_EQ(a.id1, b.id1) << dim;
-      EXPECT_EQ(a.id2, b.id2) << dim;
-      EXPECT_EQ(a.d1, b.d1);
-      EXPECT_EQ(a.d2, b.d2);
+    for (std::size_t nb : {1u, 3u, 40u})
+      for (int nq = 1; nq <= 4; ++nq)
+        for (float ratio : {0.f, 0.8f}) {
+          std::vector<float> blocks(nb * dim * 8), q(std::size_t(nq) * dim), norms(nb * 8), qn(nq);
+          std::vector<std::int32_t> labels(nb * 8);
+          for (auto& v : blocks) v = float(int(rng() % 21) - 10);
+          for (auto& v : q) v = float(int(rng() % 21) - 10);
+          for (auto& l : labels) l = std::int32_t(rng() % 6) - 1;  // includes -1 padding lanes
+          for (std::size_t i = 0; i < nb * 8; ++i) {
+            std::vector<float> x(dim);
+            for (int d = 0; d < dim; ++d) x[d] = blocks[(i / 8 * dim + d) * 8 + i % 8];
+            norms[i] = internal::SquaredNorm(x.data(), dim);
+          }
+          for (int k = 0; k < nq; ++k) qn[k] = internal::SquaredNorm(&q[k * dim], dim);
+          internal::TopTwo a[4], b[4];
+          for (int k = 0; k < 4; ++k) a[k] = b[k] = internal::EmptyTopTwo(ratio);
+          internal::TwoDistinctNormScalar(blocks.data(), norms.data(), labels.data(), nb, q.data(), qn.data(), nq, dim, a);
+          internal::TwoDistinctNormAvx2(blocks.data(), norms.data(), labels.data(), nb, q.data(), qn.data(), nq, dim, b);
+          for (int k = 0; k < nq; ++k) {
+            EXPECT_EQ(a[k].id1, b[k].id1) << dim << " " << nq;
+            EXPECT_EQ(a[k].id2, b[k].id2) << dim << " " << nq;
+            EXPECT_EQ(a[k].d1, b[k].d1);
+            EXPECT_EQ(a[k].d2, b[k].d2);
+          }
+        }
+}
+
+TEST(BruteForce, TwoDistinctEqualsANaiveScanOnIntegerData) {
+  // Integer data: the norm expansion is exact, so ids must match a plain scan.
+  std::mt19937 rng(9);
+  for (int n : {1, 5, 8, 17, 1000}) {
+    const int dim = 20;
+    std::vector<float> x(std::size_t(n) * dim), q(13 * dim);
+    std::vector<std::int32_t> labels(n);
+    for (auto& v : x) v = float(int(rng() % 31) - 15);
+    for (auto& v : q) v = float(int(rng() % 31) - 15);
+    for (auto& l : labels) l = std::int32_t(rng() % 7);
+    auto index = MakeBruteForceIndex();
+    index->Build(x.data(), n, dim, labels.data());
+    std::vector<Neighbor> batch(2 * 13);
+    index->SearchTwoDistinctBatch(q.data(), 13, batch.data());
+    for (int i = 0; i < 13; ++i) {
+      float d1 = INFINITY, d2 = INFINITY;
+      int i1 = -1, i2 = -1;
+      for (int j = 0; j < n; ++j) {
+        float d = 0;
+        for (int t = 0; t < dim; ++t) d += (x[j * dim + t] - q[i * dim + t]) * (x[j * dim + t] - q[i * dim + t]);
+        if (d < d1) {
+          if (i1 < 0 || labels[j] != labels[i1]) { d2 = d1; i2 = i1; }
+          d1 = d; i1 = j;
+        } else if (d < d2 && labels[j] != labels[i1]) {
+          d2 = d; i2 = j;
+        }
+      }
+      EXPECT_EQ(batch[2 * i].id, i1);
+      EXPECT_EQ(batch[2 * i + 1].id, i2);
+      EXPECT_EQ(batch[2 * i].distance, d1);
     }
+  }
 }
 
 struct Data {

@@ -24,18 +24,30 @@ TopTwo EmptyTopTwo(float ratio) {
   return {inf, inf, -1, -1, -1, -1, ratio * ratio};
 }
 
-void TwoDistinctScalar(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
-                       std::int32_t first_id, TopTwo& t) {
-  float d[kLanes];
+float SquaredNorm(const float* x, int dim) {
+  float s = 0.f;
+  for (int d = 0; d < dim; ++d) s = std::fma(x[d], x[d], s);
+  return s;
+}
+
+void TwoDistinctNormScalar(const float* blocks, const float* norms, const std::int32_t* labels, std::size_t nblocks,
+                           const float* queries, const float* qnorms, int nq, int dim, TopTwo* t) {
   for (std::size_t b = 0; b < nblocks; ++b) {
-    L2Blocks8Scalar(blocks + b * std::size_t(dim) * kLanes, 1, q, dim, d);
-    for (int l = 0; l < kLanes; ++l)
-      TopTwoOffer(t, d[l], first_id + std::int32_t(b * kLanes + l), labels[b * kLanes + l]);
+    const float* blk = blocks + b * std::size_t(dim) * kLanes;
+    for (int qi = 0; qi < nq; ++qi) {
+      const float* q = queries + std::size_t(qi) * dim;
+      for (int l = 0; l < kLanes; ++l) {
+        float acc = norms[b * kLanes + l] + qnorms[qi];
+        for (int d = 0; d < dim; ++d) acc = std::fma(-2.f * q[d], blk[d * kLanes + l], acc);
+        acc = std::max(acc, 0.f);
+        TopTwoOffer(t[qi], acc, std::int32_t(b * kLanes + l), labels[b * kLanes + l]);
+      }
+    }
   }
 }
 
-TwoDistinctFn BestTwoDistinct() {
-  static const TwoDistinctFn fn = CpuHasAvx2() ? &TwoDistinctAvx2 : &TwoDistinctScalar;
+TwoDistinctNormFn BestTwoDistinctNorm() {
+  static const TwoDistinctNormFn fn = CpuHasAvx2() ? &TwoDistinctNormAvx2 : &TwoDistinctNormScalar;
   return fn;
 }
 

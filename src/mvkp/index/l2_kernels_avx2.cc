@@ -18,34 +18,52 @@ void L2Blocks8Avx2(const float* blocks, std::size_t nblocks, const float* q, int
   }
 }
 
-void TwoDistinctAvx2(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
-                     std::int32_t first_id, TopTwo& t) {
-  // Full distances without early exits: at these dimensions a mispredicted
-  // "abandon this block" branch costs more than finishing the block. The
-  // only branch, "some lane beats the bound", is rarely taken. Accumulation
-  // is sequential in dimension order with FMA, exactly as the scalar
-  // reference, so both give bit-identical distances.
-  float bound_s = t.Bound();
-  __m256 bound = _mm256_set1_ps(bound_s);
+namespace {
+
+template <int Q>
+void TwoDistinctNormQ(const float* blocks, const float* norms, const std::int32_t* labels, std::size_t nblocks,
+                      const float* queries, const float* qnorms, int dim, TopTwo* t) {
+  __m256 bound[Q], qn[Q];
+  for (int k = 0; k < Q; ++k) {
+    bound[k] = _mm256_set1_ps(t[k].Bound());
+    qn[k] = _mm256_set1_ps(qnorms[k]);
+  }
+  const __m256 zero = _mm256_setzero_ps();
   for (std::size_t b = 0; b < nblocks; ++b) {
     const float* blk = blocks + b * std::size_t(dim) * kLanes;
-    __m256 acc = _mm256_setzero_ps();
+    const __m256 xn = _mm256_loadu_ps(norms + b * kLanes);
+    __m256 acc[Q];
+    for (int k = 0; k < Q; ++k) acc[k] = _mm256_add_ps(xn, qn[k]);
     for (int d = 0; d < dim; ++d) {
-      const __m256 x = _mm256_sub_ps(_mm256_loadu_ps(blk + d * kLanes), _mm256_set1_ps(q[d]));
-      acc = _mm256_fmadd_ps(x, x, acc);
+      const __m256 row = _mm256_loadu_ps(blk + d * kLanes);
+      for (int k = 0; k < Q; ++k)
+        acc[k] = _mm256_fmadd_ps(_mm256_set1_ps(-2.f * queries[k * dim + d]), row, acc[k]);
     }
-    int mask = _mm256_movemask_ps(_mm256_cmp_ps(acc, bound, _CMP_LT_OQ));
-    if (__builtin_expect(mask == 0, 1)) continue;
-    alignas(32) float dist[kLanes];
-    _mm256_store_ps(dist, acc);
-    const std::int32_t* lab = labels + b * kLanes;
-    while (mask) {
-      const int l = __builtin_ctz(unsigned(mask));
-      mask &= mask - 1;
-      TopTwoOffer(t, dist[l], first_id + std::int32_t(b * kLanes + l), lab[l]);
+    for (int k = 0; k < Q; ++k) {
+      int mask = _mm256_movemask_ps(_mm256_cmp_ps(acc[k], bound[k], _CMP_LT_OQ));
+      if (__builtin_expect(mask == 0, 1)) continue;
+      alignas(32) float dist[kLanes];
+      _mm256_store_ps(dist, _mm256_max_ps(acc[k], zero));
+      const std::int32_t* lab = labels + b * kLanes;
+      while (mask) {
+        const int l = __builtin_ctz(unsigned(mask));
+        mask &= mask - 1;
+        TopTwoOffer(t[k], dist[l], std::int32_t(b * kLanes + l), lab[l]);
+      }
+      bound[k] = _mm256_set1_ps(t[k].Bound());
     }
-    bound_s = t.Bound();
-    bound = _mm256_set1_ps(bound_s);
+  }
+}
+
+}  // namespace
+
+void TwoDistinctNormAvx2(const float* blocks, const float* norms, const std::int32_t* labels, std::size_t nblocks,
+                         const float* queries, const float* qnorms, int nq, int dim, TopTwo* t) {
+  switch (nq) {
+    case 1: return TwoDistinctNormQ<1>(blocks, norms, labels, nblocks, queries, qnorms, dim, t);
+    case 2: return TwoDistinctNormQ<2>(blocks, norms, labels, nblocks, queries, qnorms, dim, t);
+    case 3: return TwoDistinctNormQ<3>(blocks, norms, labels, nblocks, queries, qnorms, dim, t);
+    default: return TwoDistinctNormQ<4>(blocks, norms, labels, nblocks, queries, qnorms, dim, t);
   }
 }
 

@@ -31,18 +31,6 @@ struct TopTwo {
 };
 TopTwo EmptyTopTwo(float ratio = 0.f);
 
-// Scans `nblocks` blocks of 8 vectors (labels in the same order, -1 for
-// padding lanes) and updates t exactly as a plain scan in id order would.
-// The AVX2 version abandons a block once its partial distance over the
-// leading dimensions reaches t.d2 (partial sums of squares only grow, so the
-// result is unchanged). `first_id` is the id of the first lane.
-void TwoDistinctScalar(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
-                       std::int32_t first_id, TopTwo& t);
-void TwoDistinctAvx2(const float* blocks, const std::int32_t* labels, std::size_t nblocks, const float* q, int dim,
-                     std::int32_t first_id, TopTwo& t);
-using TwoDistinctFn = void (*)(const float*, const std::int32_t*, std::size_t, const float*, int, std::int32_t, TopTwo&);
-TwoDistinctFn BestTwoDistinct();
-
 // Candidate update shared by both kernels.
 inline void TopTwoOffer(TopTwo& t, float d, std::int32_t id, std::int32_t lab) {
   if (d >= t.Bound() || lab < 0) return;
@@ -61,6 +49,23 @@ inline void TopTwoOffer(TopTwo& t, float d, std::int32_t id, std::int32_t lab) {
     t.lab2 = lab;
   }
 }
+
+// Batched form through the expansion |x - q|^2 = |x|^2 + |q|^2 - 2 x.q:
+// `norms` holds |x|^2 per lane (padding lanes: +inf), `queries` holds nq
+// queries of `dim` floats (nq in 1..4) with their squared norms in `qnorms`,
+// and t[0..nq) is updated for each. Each stored row is loaded once for all
+// nq queries. Both versions accumulate in the same order with fused
+// multiply-adds and clamp at 0, so they agree bit for bit.
+void TwoDistinctNormScalar(const float* blocks, const float* norms, const std::int32_t* labels, std::size_t nblocks,
+                           const float* queries, const float* qnorms, int nq, int dim, TopTwo* t);
+void TwoDistinctNormAvx2(const float* blocks, const float* norms, const std::int32_t* labels, std::size_t nblocks,
+                         const float* queries, const float* qnorms, int nq, int dim, TopTwo* t);
+using TwoDistinctNormFn = void (*)(const float*, const float*, const std::int32_t*, std::size_t, const float*,
+                                   const float*, int, int, TopTwo*);
+TwoDistinctNormFn BestTwoDistinctNorm();
+
+// |x|^2 accumulated with fused multiply-adds in dimension order.
+float SquaredNorm(const float* x, int dim);
 
 bool CpuHasAvx2();
 
