@@ -34,12 +34,6 @@ struct BenchArgs {
   MatchOptions match;
 };
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
 int RunBench(BenchArgs& a) {
   Require(a.repeat >= 1 && a.train_repeat >= 1, ErrorCode::kInvalidArgument, "--repeat and --train-repeat must be >= 1");
   const cv::Mat object = LoadImageGray(a.image);

@@ -75,15 +75,6 @@ std::vector<Pair> ReadManifest(const std::string& path) {
   return out;
 }
 
-double CornerError(const cv::Matx33d& Hest, const cv::Matx33d& Htrue, cv::Size s) {
-  std::vector<cv::Point2d> c = {{0, 0}, {s.width - 1.0, 0}, {s.width - 1.0, s.height - 1.0}, {0, s.height - 1.0}}, a, b;
-  cv::perspectiveTransform(c, a, cv::Mat(Hest));
-  cv::perspectiveTransform(c, b, cv::Mat(Htrue));
-  double e = 0;
-  for (int i = 0; i < 4; ++i) e += cv::norm(a[i] - b[i]);
-  return std::isfinite(e) ? e / 4 : INFINITY;
-}
-
 int Correct(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b, const cv::Matx33d& H) {
   if (a.empty()) return 0;
   std::vector<cv::Point2f> p;
@@ -91,12 +82,6 @@ int Correct(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b
   int n = 0;
   for (std::size_t i = 0; i < a.size(); ++i) n += cv::norm(p[i] - b[i]) < 3.0;
   return n;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 int RunEval(EvalArgs& a) {
@@ -136,7 +121,7 @@ int RunEval(EvalArgs& a) {
       row.matches = int(r.matches.size());
       row.inliers = r.inliers;
       row.ms = r.time.total();
-      if (gt && r.found) row.corner_err = CornerError(r.homography, H, sizes[p.img1]);
+      if (gt && r.found) row.corner_err = MeanCornerError(r.homography, H, sizes[p.img1]);
       std::vector<cv::Point2f> oa, qb;
       for (const auto& m : r.matches) {
         oa.push_back(m.object);
@@ -151,7 +136,7 @@ int RunEval(EvalArgs& a) {
       row.matches = int(r.object_pts.size());
       row.inliers = int(std::count(r.inlier.begin(), r.inlier.end(), 1));
       row.ms = r.ms;
-      if (gt && r.found) row.corner_err = CornerError(r.homography, H, sizes[p.img1]);
+      if (gt && r.found) row.corner_err = MeanCornerError(r.homography, H, sizes[p.img1]);
       if (gt) row.correct = Correct(r.object_pts, r.query_pts, H);
       rows.push_back(row);
     }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -30,6 +31,9 @@ cv::Mat DrawPair(const cv::Mat& object, const cv::Mat& frame, const MatchResult&
 
 // "out.png" with index 3 of several -> "out-3.png"; unchanged when count == 1.
 std::string IndexedPath(const std::string& path, int index, int count);
+
+// Median of a sample (0 when empty).
+double Median(std::vector<double> v);
 
 // Progress line on stderr when it is a terminal.
 void Progress(const std::string& what, int done, int total);

@@ -16,15 +16,6 @@
 #include "mvkp/synth/synth.h"
 #include "mvkp/train/trainer.h"
 
-namespace {
-
-cv::Point2d Apply(const cv::Matx33d& H, cv::Point2d p) {
-  const cv::Vec3d q = H * cv::Vec3d(p.x, p.y, 1.0);
-  return {q[0] / q[2], q[1] / q[2]};
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   if (argc != 2) {
     std::fprintf(stderr, "usage: %s IMAGE\n", argv[0]);
@@ -50,13 +41,7 @@ int main(int argc, char** argv) {
       return 1;
     }
 
-    const double w = target.cols - 1, h = target.rows - 1;
-    const std::array<cv::Point2d, 4> corners{{{0, 0}, {w, 0}, {w, h}, {0, h}}};
-    double error = 0;
-    for (const cv::Point2d& c : corners) {
-      const cv::Point2d d = Apply(result.homography, c) - Apply(scene.H, c);
-      error += std::hypot(d.x, d.y) / corners.size();
-    }
+    const double error = mvkp::MeanCornerError(result.homography, scene.H, target.size());
     if (!std::isfinite(error) || error >= 5.0) {
       std::printf("FAIL: mean corner error %.3f px (want < 5)\n", error);
       return 1;

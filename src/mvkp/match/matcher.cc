@@ -28,6 +28,16 @@ void MatchOptions::Check() const {
   Require(min_inliers >= 4, ErrorCode::kInvalidArgument, "min inliers must be >= 4");
 }
 
+double MeanCornerError(const cv::Matx33d& a, const cv::Matx33d& b, cv::Size s) {
+  const std::vector<cv::Point2d> c = {{0, 0}, {s.width - 1.0, 0}, {s.width - 1.0, s.height - 1.0}, {0, s.height - 1.0}};
+  std::vector<cv::Point2d> pa, pb;
+  cv::perspectiveTransform(c, pa, cv::Mat(a));
+  cv::perspectiveTransform(c, pb, cv::Mat(b));
+  double e = 0;
+  for (int i = 0; i < 4; ++i) e += cv::norm(pa[i] - pb[i]);
+  return std::isfinite(e) ? e / 4 : std::numeric_limits<double>::infinity();
+}
+
 bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& q, double min_area) {
   for (const auto& p : q)
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || std::abs(p.x) > 1e6 || std::abs(p.y) > 1e6) return false;

@@ -90,6 +90,11 @@ class Matcher {
   std::unique_ptr<KnnIndex> index_;
 };
 
+// Mean distance (pixels) between where two homographies put the four corners
+// (0,0), (w-1,0), (w-1,h-1), (0,h-1) of an image of `size`: the HPatches-style
+// corner error that eval_pairs.py and `mvkp eval` report. +inf if not finite.
+double MeanCornerError(const cv::Matx33d& a, const cv::Matx33d& b, cv::Size size);
+
 // True if the quadrilateral is convex, not self-intersecting, and of area >= min_area.
 bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& quad, double min_area = 64.0);
 

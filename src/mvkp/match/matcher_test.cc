@@ -17,15 +17,6 @@ cv::Mat Sample(const char* name, int flags = cv::IMREAD_GRAYSCALE) {
   return m;
 }
 
-double CornerError(const cv::Matx33d& Hest, const cv::Matx33d& Htrue, cv::Size s) {
-  std::vector<cv::Point2d> c = {{0, 0}, {s.width - 1.0, 0}, {s.width - 1.0, s.height - 1.0}, {0, s.height - 1.0}}, a, b;
-  cv::perspectiveTransform(c, a, cv::Mat(Hest));
-  cv::perspectiveTransform(c, b, cv::Mat(Htrue));
-  double e = 0;
-  for (int i = 0; i < 4; ++i) e += cv::norm(a[i] - b[i]);
-  return e / 4;
-}
-
 class MatcherOnSyntheticViews : public ::testing::TestWithParam<const char*> {};
 
 // Trains on a sample image and finds it in cluttered synthetic scenes with
@@ -40,7 +31,7 @@ TEST_P(MatcherOnSyntheticViews, FindsTheTargetWithin5px) {
   for (int i = 0; i < n; ++i) {
     const SceneView v = MakeSceneView(target, so, 1000 + i);
     const MatchResult r = matcher.Match(v.image);
-    if (r.found && CornerError(r.homography, v.H, target.size()) < 5.0) ++ok;
+    if (r.found && MeanCornerError(r.homography, v.H, target.size()) < 5.0) ++ok;
   }
   EXPECT_GE(ok, n * 2 / 3) << GetParam();
 }
@@ -66,7 +57,7 @@ TEST(Matcher, AffineModeAndDynamicRatioWork) {
   mo.geometry = GeometryModel::kAffine;
   const MatchResult r = Matcher(model, mo).Match(v.image);
   ASSERT_TRUE(r.found);
-  EXPECT_LT(CornerError(r.homography, v.H, target.size()), 5.0);
+  EXPECT_LT(MeanCornerError(r.homography, v.H, target.size()), 5.0);
   EXPECT_EQ(r.homography(2, 0), 0.0);
   mo = MatchOptions{};
   mo.dynamic_goal = 40;
