@@ -10,12 +10,10 @@
 namespace mvkp::bench {
 namespace {
 
-class FaissFlat : public Method {
+// Search plumbing shared by every FAISS index: one query, or nq in one call.
+template <typename Index>
+class FaissMethod : public Method {
  public:
-  void Build(const float* data, std::size_t n, int dim) override {
-    index_ = std::make_unique<faiss::IndexFlatL2>(dim);
-    index_->add(faiss::Index::idx_t(n), data);
-  }
   void SearchOne(const float* q, int k, std::int64_t* ids, float* dists) override {
     index_->search(1, q, k, dists, ids);
   }
@@ -23,26 +21,27 @@ class FaissFlat : public Method {
   void SearchBatch(const float* q, std::size_t nq, int k, std::int64_t* ids, float* dists) override {
     index_->search(faiss::Index::idx_t(nq), q, k, dists, ids);
   }
-  double StructureBytes() const override { return double(index_->codes.size()); }
 
- private:
-  std::unique_ptr<faiss::IndexFlatL2> index_;
+ protected:
+  std::unique_ptr<Index> index_;
 };
 
-class FaissHnsw : public Method {
+class FaissFlat : public FaissMethod<faiss::IndexFlatL2> {
+ public:
+  void Build(const float* data, std::size_t n, int dim) override {
+    index_ = std::make_unique<faiss::IndexFlatL2>(dim);
+    index_->add(faiss::Index::idx_t(n), data);
+  }
+  double StructureBytes() const override { return double(index_->codes.size()); }
+};
+
+class FaissHnsw : public FaissMethod<faiss::IndexHNSWFlat> {
  public:
   static constexpr int kM = 32, kEfSearch = 64;
   void Build(const float* data, std::size_t n, int dim) override {
     index_ = std::make_unique<faiss::IndexHNSWFlat>(dim, kM);
     index_->hnsw.efSearch = kEfSearch;
     index_->add(faiss::Index::idx_t(n), data);
-  }
-  void SearchOne(const float* q, int k, std::int64_t* ids, float* dists) override {
-    index_->search(1, q, k, dists, ids);
-  }
-  bool has_batch() const override { return true; }
-  void SearchBatch(const float* q, std::size_t nq, int k, std::int64_t* ids, float* dists) override {
-    index_->search(faiss::Index::idx_t(nq), q, k, dists, ids);
   }
   double StructureBytes() const override {
     const auto& h = index_->hnsw;
@@ -51,9 +50,6 @@ class FaissHnsw : public Method {
     if (const auto* flat = dynamic_cast<const faiss::IndexFlatCodes*>(index_->storage)) bytes += double(flat->codes.size());
     return bytes;
   }
-
- private:
-  std::unique_ptr<faiss::IndexHNSWFlat> index_;
 };
 
 }  // namespace
