@@ -16,6 +16,7 @@ enum class ErrorCode {
   kBadImage,         // not an image, truncated, empty, too small or too large
   kBadModel,         // a model file is corrupt, truncated or of another version
   kNoTexture,        // a target has too little texture to train on
+  kBadIndex,         // an index or vector file is corrupt, truncated or of another version
 };
 
 class Error : public std::runtime_error {

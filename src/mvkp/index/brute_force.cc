@@ -1,4 +1,6 @@
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <limits>
 #include <string>
 #include <vector>
@@ -20,6 +22,7 @@ class BruteForceIndex final : public KnnIndex {
  public:
   void Build(const float* data, std::size_t n, int dim, const std::int32_t* labels) override {
     Require(dim >= 1, ErrorCode::kInvalidArgument, "index: dimension must be >= 1");
+    internal::RequireFinite(data, n, dim, "index: database");
     n_ = n;
     dim_ = dim;
     nblocks_ = (n + kLanes - 1) / kLanes;
@@ -41,8 +44,11 @@ class BruteForceIndex final : public KnnIndex {
   std::string name() const override { return "brute"; }
 
   void Search(const float* q, int k, Neighbor* out) const override {
+    if (k <= 0) return;
     std::fill(out, out + k, Neighbor{});
-    if (n_ == 0 || k <= 0) return;
+    internal::RequireFinite(q, 1, dim_, "index: query");
+    if (n_ == 0) return;
+    computations_.fetch_add(n_, std::memory_order_relaxed);
     const float* dist = Distances(q);
     for (std::size_t i = 0; i < n_; ++i) {
       const float d = dist[i];
@@ -65,6 +71,8 @@ class BruteForceIndex final : public KnnIndex {
     for (std::size_t first = 0; first < nq; first += 4) {
       const int m = int(std::min<std::size_t>(4, nq - first));
       const float* q = queries + first * std::size_t(dim_);
+      internal::RequireFinite(q, std::size_t(m), dim_, "index: query");
+      computations_.fetch_add(n_ * std::size_t(m), std::memory_order_relaxed);
       internal::TopTwo t[4];
       float qn[4];
       for (int k = 0; k < m; ++k) {
@@ -78,6 +86,13 @@ class BruteForceIndex final : public KnnIndex {
         o[1] = t[k].id2 < 0 ? Neighbor{} : Neighbor{t[k].id2, t[k].lab2, t[k].d2};
       }
     }
+  }
+
+ std::uint64_t distance_computations() const override { return computations_.load(); }
+  void ResetStats() const override { computations_ = 0; }
+  std::size_t memory_bytes() const override {
+    return sizeof(*this) + blocks_.size() * sizeof(float) + norms_.size() * sizeof(float) +
+           labels_.size() * sizeof(std::int32_t);
   }
 
  private:
@@ -97,6 +112,7 @@ class BruteForceIndex final : public KnnIndex {
   std::vector<std::int32_t> labels_;
   internal::L2Blocks8Fn kernel_ = nullptr;
   internal::TwoDistinctNormFn two_ = nullptr;
+  mutable std::atomic<std::uint64_t> computations_{0};
 };
 
 }  // namespace

@@ -49,7 +49,26 @@ class KnnIndex {
   virtual void SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neighbor* out, float ratio = 0.f) const {
     for (std::size_t i = 0; i < nq; ++i) SearchTwoDistinct(queries + i * std::size_t(dim()), out + 2 * i, ratio);
   }
+
+  // Batched k-NN: nq queries (row-major), out holds k*nq entries.
+  virtual void SearchBatch(const float* queries, std::size_t nq, int k, Neighbor* out) const {
+    for (std::size_t i = 0; i < nq; ++i) Search(queries + i * std::size_t(dim()), k, out + i * std::size_t(k));
+  }
+
+  // Exact distance computations made by searches since the last ResetStats()
+  // (all threads): the cost measure of thesis Fig. 5.3. Brute force makes n
+  // per query; a filtering index makes as many as its filter lets through.
+  virtual std::uint64_t distance_computations() const { return 0; }
+  virtual void ResetStats() const {}
+
+  // Bytes held by the index (its copy of the vectors included), for memory reports.
+  virtual std::size_t memory_bytes() const = 0;
 };
+
+// Ties: every index orders neighbours by (distance, id), so equal distances
+// resolve to the smaller id and exact indexes agree with brute force even on
+// duplicated vectors. Queries with NaN or infinite values, and Build() with
+// them, throw Error(kInvalidArgument).
 
 // Exact linear scan, vectorised (AVX2 when the CPU has it, scalar otherwise).
 std::unique_ptr<KnnIndex> MakeBruteForceIndex();

@@ -1,6 +1,10 @@
 #include "mvkp/index/internal/l2_kernels.h"
 
 #include <cmath>
+#include <cstring>
+#include <string>
+
+#include "mvkp/core/error.h"
 
 namespace mvkp::internal {
 
@@ -49,6 +53,26 @@ void TwoDistinctNormScalar(const float* blocks, const float* norms, const std::i
 TwoDistinctNormFn BestTwoDistinctNorm() {
   static const TwoDistinctNormFn fn = CpuHasAvx2() ? &TwoDistinctNormAvx2 : &TwoDistinctNormScalar;
   return fn;
+}
+
+void RequireFinite(const float* data, std::size_t n, int dim, const char* what) {
+  const std::size_t total = n * std::size_t(dim);
+  // Branch-free pass first (exponent all ones <=> NaN or inf; integer ops
+  // vectorise without reassociating floats), then locate the culprit.
+  std::uint32_t bad = 0;
+  for (std::size_t i = 0; i < total; ++i) {
+    std::uint32_t bits;
+    std::memcpy(&bits, data + i, 4);
+    bad |= std::uint32_t((bits & 0x7F800000u) == 0x7F800000u);
+  }
+  if (!bad) return;
+  for (std::size_t i = 0; i < total; ++i) {
+    if (!std::isfinite(data[i])) {
+      throw Error(ErrorCode::kInvalidArgument, std::string(what) + " has a NaN or infinite value (vector " +
+                                                   std::to_string(i / std::size_t(dim)) + ", dimension " +
+                                                   std::to_string(i % std::size_t(dim)) + ")");
+    }
+  }
 }
 
 bool CpuHasAvx2() {

@@ -67,6 +67,4 @@ Model DeserializeModel(const std::uint8_t* data, std::size_t size, const std::st
 void SaveModel(const Model& model, const std::string& path);
 Model LoadModel(const std::string& path);
 
-std::uint32_t Crc32(const std::uint8_t* data, std::size_t size);
-
 }  // namespace mvkp

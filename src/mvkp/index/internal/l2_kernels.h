@@ -69,6 +69,10 @@ float SquaredNorm(const float* x, int dim);
 
 bool CpuHasAvx2();
 
+// Throws Error(kInvalidArgument) "<what> has a NaN or infinite value (vector i)"
+// when any of the n vectors of `dim` floats is not finite.
+void RequireFinite(const float* data, std::size_t n, int dim, const char* what);
+
 using L2Blocks8Fn = void (*)(const float*, std::size_t, const float*, int, float*);
 // The fastest kernel this CPU runs, chosen once.
 L2Blocks8Fn BestL2Blocks8();
