@@ -37,6 +37,9 @@ void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
   cmd->add_option("--ransac-threshold", o->ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
   cmd->add_option("--min-inliers", o->min_inliers, "fewer inliers: target not found")->capture_default_str();
   cmd->add_flag("--affine", *affine, "fit an affine transform instead of a homography");
+  cmd->add_option("--index", o->index, "descriptor search: exact (FFVA) | approx | brute")
+      ->check(CLI::IsMember({"exact", "approx", "brute"}))
+      ->capture_default_str();
   const std::map<std::string, RobustMethod> methods = {{"ransac", RobustMethod::kRansac}, {"fast", RobustMethod::kFast},
                                                        {"accurate", RobustMethod::kAccurate}, {"magsac", RobustMethod::kMagsac}};
   cmd->add_option("--robust", o->robust, "robust estimator: ransac | fast | accurate | magsac")

@@ -71,6 +71,7 @@ struct Node {
   std::int32_t dim;
   float split;
   std::int32_t a, b;
+  std::uint32_t first_block, nblocks;  // the subtree's code blocks (contiguous)
 };
 
 struct Leaf {
@@ -187,6 +188,8 @@ class FfvaIndex final : public KnnIndex {
   explicit FfvaIndex(const FfvaOptions& o) : options_(o) {
     Require(o.leaf_size >= kBlockLanes && o.leaf_size <= 4096 && o.leaf_size % kBlockLanes == 0,
             ErrorCode::kInvalidArgument, "ffva: leaf_size must be a multiple of 32 in [32, 4096]");
+    Require(o.scan_blocks >= 1 && o.scan_blocks <= (1 << 20), ErrorCode::kInvalidArgument,
+            "ffva: scan_blocks must be in [1, 2^20]");
   }
 
   void Build(const float* data, std::size_t n, int dim, const std::int32_t* labels) override;
@@ -230,6 +233,10 @@ class FfvaIndex final : public KnnIndex {
   void Visit(Query& s, std::int32_t node, double rd, C& c) const;
   template <class C>
   void ScanLeaf(Query& s, const Leaf& leaf, C& c) const;
+  template <class C>
+  void ScanBlocks(Query& s, std::size_t first_block, std::size_t nblocks, C& c) const;
+  template <class C>
+  void ScanRange(Query& s, std::size_t first_block, std::size_t nblocks, C& c) const;
 
   std::int32_t Label(std::size_t pos) const { return labels_ ? labels_[pos] : ids_[pos]; }
 
@@ -251,6 +258,7 @@ class FfvaIndex final : public KnnIndex {
   const std::int32_t* ids_ = nullptr;
   const std::int32_t* labels_ = nullptr;  // null: labels are ids
   std::uint32_t nnodes_ = 0, nleaves_ = 0;
+  std::uint32_t scan_blocks_ = 1;
 
   const internal::FfvaKernels& k_ = internal::BestFfvaKernels();
   internal::L2Blocks8Fn group_l2_ = internal::BestL2Blocks8();
@@ -282,6 +290,7 @@ struct FfvaIndex::Query {
   std::uint8_t sums[4096];
   float dist[kBlockLanes];
   std::uint64_t computed = 0;
+  std::size_t done_begin = 0, done_end = 0;  // blocks already searched exhaustively (the first leaf)
 
   void Quantise(const internal::FfvaKernels& k, float threshold) {
     scale_threshold = threshold;
@@ -316,6 +325,7 @@ void FfvaIndex::Run(const float* q, C& c) const {
     }
   }
   s.offsets.assign(std::size_t(dim_), 0.0);
+  s.done_begin = s.done_end = 0;
   Visit(s, 0, 0.0, c);
   computations_.fetch_add(s.computed, std::memory_order_relaxed);
 }
@@ -325,6 +335,11 @@ void FfvaIndex::Run(const float* q, C& c) const {
 template <class C>
 void FfvaIndex::Visit(Query& s, std::int32_t ni, double rd, C& c) const {
   const Node& node = nodes_[ni];
+  if (node.nblocks <= scan_blocks_ && c.Threshold() < std::numeric_limits<float>::infinity()) {
+    // Small subtree: one filter pass over its blocks beats visiting its leaves.
+    ScanBlocks(s, node.first_block, node.nblocks, c);
+    return;
+  }
   if (node.dim < 0) {
     ScanLeaf(s, leaves_[node.a], c);
     return;
@@ -346,12 +361,11 @@ void FfvaIndex::Visit(Query& s, std::int32_t ni, double rd, C& c) const {
 template <class C>
 void FfvaIndex::ScanLeaf(Query& s, const Leaf& leaf, C& c) const {
   const float* q = s.q;
-  const float inf = std::numeric_limits<float>::infinity();
-  float t = c.Threshold();
-  const std::size_t group_floats = std::size_t(dim_) * kGroup;
-  if (t == inf) {
+  const float t = c.Threshold();
+  if (t == std::numeric_limits<float>::infinity()) {
     // Nothing to compare with yet (the first leaf): exact distances for the
     // whole leaf, 8 at a time, to set the threshold.
+    const std::size_t group_floats = std::size_t(dim_) * kGroup;
     const std::size_t ngroups = (leaf.count + kGroup - 1) / kGroup;
     for (std::size_t g = 0; g < ngroups; ++g) {
       group_l2_(vectors_ + (std::size_t(leaf.first_block) * (kBlockLanes / kGroup) + g) * group_floats, 1, q, dim_,
@@ -363,21 +377,45 @@ void FfvaIndex::ScanLeaf(Query& s, const Leaf& leaf, C& c) const {
       }
       s.computed += lanes;
     }
+    if (s.done_end == s.done_begin) {
+      s.done_begin = leaf.first_block;
+      s.done_end = leaf.first_block + (leaf.count + kBlockLanes - 1) / kBlockLanes;
+    }
     return;
   }
   // Tight bounding box of the leaf's vectors.
   const float* box = boxes_ + std::size_t(&leaf - leaves_) * 2 * dim_;
   if (k_.box(box, box + dim_, q, dim_) * kShrink > t) return;
-  const std::uint8_t* leaf_codes = codes_ + std::size_t(leaf.first_block) * npairs_ * kBlockLanes;
-  const std::size_t nb = (leaf.count + kBlockLanes - 1) / kBlockLanes;
+  ScanRange(s, leaf.first_block, (leaf.count + kBlockLanes - 1) / kBlockLanes, c);
+}
+
+// Filter then refine blocks [first, first + nblocks), minus the first leaf's.
+template <class C>
+void FfvaIndex::ScanBlocks(Query& s, std::size_t first, std::size_t nblocks, C& c) const {
+  const std::size_t end = first + nblocks;
+  if (s.done_end <= first || s.done_begin >= end || s.done_begin == s.done_end) {
+    ScanRange(s, first, nblocks, c);
+    return;
+  }
+  if (first < s.done_begin) ScanRange(s, first, s.done_begin - first, c);
+  if (s.done_end < end) ScanRange(s, s.done_end, end - s.done_end, c);
+}
+
+// Vectors are stored in block order with 32 per block (only the very last
+// block may be partial), so lane l of block b is vector b * 32 + l.
+template <class C>
+void FfvaIndex::ScanRange(Query& s, std::size_t first, std::size_t nblocks, C& c) const {
+  const float* q = s.q;
+  float t = c.Threshold();
+  const std::size_t group_floats = std::size_t(dim_) * kGroup;
   constexpr std::size_t kChunk = sizeof(s.masks) / sizeof(s.masks[0]);
-  for (std::size_t b0 = 0; b0 < nb; b0 += kChunk) {  // leaves of equal vectors may exceed leaf_size
-    const std::size_t cb = std::min(kChunk, nb - b0);
+  for (std::size_t b0 = first; b0 < first + nblocks; b0 += kChunk) {
+    const std::size_t cb = std::min(kChunk, first + nblocks - b0);
     // (Re-)quantise the tables when the threshold has shrunk enough to lose resolution.
     if (s.scale_threshold == 0.f || t < 0.25f * s.scale_threshold) s.Quantise(k_, t);
     std::uint8_t thr = s.ByteThreshold(t);
-    k_.scan(leaf_codes + b0 * npairs_ * kBlockLanes, cb, npairs_, s.lut.data(), thr, s.sums, s.masks);
-    if (b0 + cb == nb && leaf.count % kBlockLanes) s.masks[cb - 1] &= (1u << (leaf.count % kBlockLanes)) - 1;
+    k_.scan(codes_ + b0 * npairs_ * kBlockLanes, cb, npairs_, s.lut.data(), thr, s.sums, s.masks);
+    if (b0 + cb == nblocks_ && n_ % kBlockLanes) s.masks[cb - 1] &= (1u << (n_ % kBlockLanes)) - 1;
     for (std::size_t b = 0; b < cb; ++b) {
       const std::uint32_t m = s.masks[b];
       if (!m) continue;
@@ -389,11 +427,11 @@ void FfvaIndex::ScanLeaf(Query& s, const Leaf& leaf, C& c) const {
           if (s.sums[b * kBlockLanes + std::size_t(g * kGroup + l)] > thr) gm &= ~(1u << l);
         }
         if (!gm) continue;
-        const std::size_t block = std::size_t(leaf.first_block) + b0 + b;
+        const std::size_t block = b0 + b;
         group_l2_(vectors_ + (block * (kBlockLanes / kGroup) + std::size_t(g)) * group_floats, 1, q, dim_, s.dist);
         for (std::uint32_t x = gm; x; x &= x - 1) {
           const int l = __builtin_ctz(x);
-          const std::size_t pos = leaf.first + (b0 + b) * kBlockLanes + std::size_t(g * kGroup + l);
+          const std::size_t pos = block * kBlockLanes + std::size_t(g * kGroup + l);
           ++s.computed;
           c.Offer(s.dist[l], ids_[pos], Label(pos));
         }
@@ -448,7 +486,7 @@ struct TreeBuilder {
   std::int32_t Make(std::size_t begin, std::size_t end, int depth) {
     const std::size_t count = end - begin;
     const std::int32_t me = std::int32_t(nodes.size());
-    nodes.push_back({-1, 0.f, 0, 0});
+    nodes.push_back({-1, 0.f, 0, 0, blocks, 0});
     int best_dim = -1;
     if (count > std::size_t(leaf_size) && depth < kMaxDepth - 1) {
       // Widest dimension by variance, on at most 4096 evenly spaced members.
@@ -473,6 +511,7 @@ struct TreeBuilder {
       nodes[me].a = std::int32_t(leaves.size());
       leaves.push_back({std::uint32_t(begin), std::uint32_t(count), blocks, 0});
       blocks += std::uint32_t((count + kBlockLanes - 1) / kBlockLanes);
+      nodes[me].nblocks = blocks - nodes[me].first_block;
       return me;
     }
     // Left part: whole blocks, about half, so only the last leaf of the whole
@@ -492,6 +531,7 @@ struct TreeBuilder {
     const std::int32_t b = Make(begin + left, end, depth + 1);
     nodes[me].a = a;
     nodes[me].b = b;
+    nodes[me].nblocks = blocks - nodes[me].first_block;
     return me;
   }
 };
@@ -544,6 +584,7 @@ void FfvaIndex::Build(const float* data, std::size_t n, int dim, const std::int3
   h.nnodes = std::uint32_t(tb.nodes.size());
   h.nleaves = std::uint32_t(tb.leaves.size());
   h.leaf_size = std::uint32_t(options_.leaf_size);
+  h.reserved = std::uint32_t(options_.scan_blocks);
   h.filter = options_.filter == FfvaOptions::Filter::kApprox ? 1 : 0;
   h.has_labels = has_labels;
   h.off_cells = L.cells;
@@ -610,6 +651,8 @@ void FfvaIndex::Bind() {
   nleaves_ = h.nleaves;
   approx_ = h.filter == 1;
   options_.leaf_size = int(h.leaf_size);
+  options_.scan_blocks = int(h.reserved);
+  scan_blocks_ = h.reserved;
   options_.filter = approx_ ? FfvaOptions::Filter::kApprox : FfvaOptions::Filter::kExact;
   cells_ = reinterpret_cast<const float*>(base + h.off_cells);
   corners_ = reinterpret_cast<const float*>(base + h.off_corners);
@@ -644,6 +687,7 @@ void Validate(const std::uint8_t* base, std::size_t size, const std::string& nam
   if (h.dim < 1 || h.dim > 65536 || h.npairs != (h.dim + 1) / 2) BadIndex(name, "corrupt index (dimension)");
   if (h.n >= (std::uint64_t(1) << 31) || h.filter > 1 || h.has_labels > 1) BadIndex(name, "corrupt index (counts)");
   if (h.leaf_size < 32 || h.leaf_size > 4096 || h.leaf_size % 32) BadIndex(name, "corrupt index (leaf size)");
+  if (h.reserved < 1 || h.reserved > (1u << 20)) BadIndex(name, "corrupt index (scan blocks)");
   if ((h.n == 0) != (h.nnodes == 0) || h.nleaves > h.nnodes || h.nblocks > h.n + h.nleaves)
     BadIndex(name, "corrupt index (tree size)");
   const Layout L = MakeLayout(h.n, int(h.dim), int(h.npairs), h.nblocks, h.nnodes, h.nleaves, h.has_labels);
@@ -694,6 +738,26 @@ void Validate(const std::uint8_t* base, std::size_t size, const std::string& nam
     next_block += (lf.count + kBlockLanes - 1) / kBlockLanes;
   }
   if (next != h.n || next_block != h.nblocks) BadIndex(name, "corrupt index (leaf ranges)");
+  // Only the last leaf may end in a partial block (ScanRange relies on it).
+  for (std::uint32_t i = 0; i + 1 < h.nleaves; ++i)
+    if (leaves[i].count % kBlockLanes) BadIndex(name, "corrupt index (leaf ranges)");
+  // Subtree block ranges, children first.
+  for (std::uint32_t i = h.nnodes; i-- > 0;) {
+    const Node& nd = nodes[i];
+    bool ok;
+    if (nd.dim < 0) {
+      const Leaf& lf = leaves[nd.a];
+      ok = nd.first_block == lf.first_block && nd.nblocks == (lf.count + kBlockLanes - 1) / kBlockLanes;
+    } else {
+      const Node& a = nodes[nd.a];
+      const Node& b = nodes[nd.b];
+      ok = a.first_block == nd.first_block && b.first_block == std::uint64_t(a.first_block) + a.nblocks &&
+           std::uint64_t(nd.nblocks) == std::uint64_t(a.nblocks) + b.nblocks;
+    }
+    if (!ok) BadIndex(name, "corrupt index (subtree ranges)");
+  }
+  if (h.nnodes && (nodes[0].first_block != 0 || nodes[0].nblocks != h.nblocks))
+    BadIndex(name, "corrupt index (subtree ranges)");
   const auto* ids = reinterpret_cast<const std::int32_t*>(base + h.off_ids);
   std::vector<bool> seen(h.n, false);
   for (std::uint64_t i = 0; i < h.n; ++i) {

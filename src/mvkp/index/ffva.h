@@ -40,6 +40,9 @@ struct FfvaOptions {
   // Vectors per kd leaf: a multiple of 32 in [32, 4096]. Smaller leaves prune
   // more finely and cost more bounding-box tests.
   int leaf_size = 64;
+  // Subtrees of at most this many blocks of 32 vectors are filtered in one
+  // pass instead of leaf by leaf (fewer bounding-box tests and calls).
+  int scan_blocks = 8;
 };
 
 std::unique_ptr<KnnIndex> MakeFfvaIndex(const FfvaOptions& options = {});

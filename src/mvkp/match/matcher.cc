@@ -9,6 +9,7 @@
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/describe/features.h"
+#include "mvkp/index/ffva.h"
 
 namespace mvkp {
 
@@ -25,6 +26,8 @@ void MatchOptions::Check() const {
   Require(ransac_threshold > 0 && ransac_threshold <= 100, ErrorCode::kInvalidArgument, "RANSAC threshold must be in (0, 100]");
   Require(ransac_iterations >= 1 && ransac_iterations <= 1000000, ErrorCode::kInvalidArgument, "RANSAC iterations must be in 1..1e6");
   Require(ransac_confidence > 0 && ransac_confidence < 1, ErrorCode::kInvalidArgument, "RANSAC confidence must be in (0, 1)");
+  Require(index == "exact" || index == "approx" || index == "brute", ErrorCode::kInvalidArgument,
+          "index must be exact, approx or brute");
   Require(min_inliers >= 4, ErrorCode::kInvalidArgument, "min inliers must be >= 4");
 }
 
@@ -57,7 +60,7 @@ Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_pt
     : model_(model), options_(options), index_(std::move(index)) {
   options_.Check();
   model_.Validate("model");
-  if (!index_) index_ = MakeBruteForceIndex();
+  if (!index_) index_ = MakeIndexByName(options_.index);
   index_->Build(model_.descriptors.ptr<float>(), std::size_t(model_.descriptors.rows), model_.params.dims,
                 model_.labels.data());
 }

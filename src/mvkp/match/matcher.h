@@ -43,6 +43,7 @@ struct MatchOptions {
   int ransac_iterations = 2000;
   double ransac_confidence = 0.995;
   int min_inliers = 10;          // fewer inliers: the target is not found
+  std::string index = "exact";   // descriptor search: exact (FFVA), approx (thesis block distance), brute
   void Check() const;
 };
 
