@@ -13,5 +13,6 @@ void RegisterPair(CLI::App& app, int* exit_code);
 void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
 void RegisterEval(CLI::App& app, int* exit_code);
+void RegisterKnn(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterSynth(app, &code);
   mvkp::cli::RegisterBench(app, &code);
   mvkp::cli::RegisterEval(app, &code);
+  mvkp::cli::RegisterKnn(app, &code);
   // CLI11 reports "A subcommand is required" for a misspelt one; name it instead.
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;
