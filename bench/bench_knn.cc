@@ -5,9 +5,11 @@
 // over the queries; batched: one call for all queries, total / nq), recall@1
 // against exact brute force, and bytes per database vector (heap growth over
 // the build, measured with mallinfo2, and, where the library exposes its
-// arrays, their sizes).
+// arrays, their sizes, also relative to the raw vectors), and exact distance
+// computations per query where the method reports them.
 #include <malloc.h>
 
+#include <numeric>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -43,6 +45,7 @@ struct Args {
   int dim = 128;
   std::vector<int> random;  // N DIM
   std::vector<std::string> dump;
+  bool dump_only = false;
   std::string methods;  // comma-separated filter
   bool list = false;
   unsigned seed = 1;
@@ -51,15 +54,23 @@ struct Args {
 };
 
 struct Row {
-  std::string name, params, structure_how;
+  std::string name, params, structure_how, distances_how;
+  std::string error;  // non-empty: the method threw, no numbers
   double build_ms = 0;
-  double us_single = 0;
+  double us_single = 0;       // median over the queries (lowest of the passes)
+  double us_single_mean = 0;  // mean over the queries (lowest of the passes)
   std::optional<double> us_batch;
   double recall_single = 0;
   std::optional<double> recall_batch;
   double heap_bytes_per_vector = 0;
   std::optional<double> structure_bytes_per_vector;
+  std::optional<double> mem_over_raw;  // structure bytes / (n * dim * 4)
+  std::optional<double> distances_per_query;
 };
+
+// Memory goal of issue 3 for an index over n vectors of dim floats:
+// at most 1.1 x the raw vectors plus one byte per dimension and vector.
+double MemoryGoalBytesPerVector(int dim) { return 1.1 * 4.0 * dim + dim; }
 
 // Bytes currently allocated on the heap (arena plus mmap'd blocks).
 double HeapBytes() {
@@ -124,28 +135,36 @@ Row RunMethod(const MethodInfo& info, const VectorSet& db, const VectorSet& q, i
   row.name = info.name;
   row.params = info.params;
   row.structure_how = info.structure_how;
+  row.distances_how = info.distances_how;
   const double heap0 = HeapBytes();
   Timer t;
   std::unique_ptr<Method> m = info.make();
   m->Build(db.data.data(), db.n, db.dim);
   row.build_ms = t.ElapsedMs();
   row.heap_bytes_per_vector = (HeapBytes() - heap0) / double(db.n);
-  if (const double s = m->StructureBytes(); s >= 0) row.structure_bytes_per_vector = s / double(db.n);
+  if (const double s = m->StructureBytes(); s >= 0) {
+    row.structure_bytes_per_vector = s / double(db.n);
+    row.mem_over_raw = *row.structure_bytes_per_vector / (4.0 * db.dim);
+  }
 
   const std::size_t kk = std::size_t(k);
   std::vector<std::int64_t> ids(q.n * kk, -1);
   std::vector<float> dists(q.n * kk);
   std::vector<double> us(q.n);
-  row.us_single = 1e300;
+  row.us_single = row.us_single_mean = 1e300;
   for (int pass = 0; pass < repeat; ++pass) {
+    m->ResetDistanceCount();
     for (std::size_t i = 0; i < q.n; ++i) {
       const auto t0 = std::chrono::steady_clock::now();
       m->SearchOne(q.data.data() + i * std::size_t(q.dim), k, &ids[i * kk], &dists[i * kk]);
       us[i] = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
     }
     row.us_single = std::min(row.us_single, Median(us));
+    row.us_single_mean = std::min(row.us_single_mean, std::accumulate(us.begin(), us.end(), 0.0) / double(us.size()));
   }
   row.recall_single = Recall(db, q, gt, ids, k);
+  if (const double c = m->DistanceComputations(q.data.data(), q.n, k); c >= 0)
+    row.distances_per_query = c / double(q.n);
 
   if (m->has_batch()) {
     // Best of up to 3 runs, stopping early once batch_seconds have been spent.
@@ -175,23 +194,34 @@ void PrintTable(const Dataset& d, int k, const std::vector<Row>& rows, const std
   std::printf("n=%zu nq=%zu dim=%d k=%d, single thread; generated/loaded in %.1f s\n", d.db.n, d.queries.n, d.db.dim,
               k, d.generate_ms / 1000);
   for (const auto& e : env) std::printf("%s\n", e.c_str());
-  std::printf("\n%-16s %11s %12s %11s %9s %11s %11s\n", "method", "build ms", "us/q single", "us/q batch",
-              "recall@1", "B/vec heap", "B/vec struct");
+  const double raw = 4.0 * d.db.dim, goal = MemoryGoalBytesPerVector(d.db.dim);
+  std::printf("memory goal (issue 3): <= 1.1 x raw + 1 B/dim/vector = %.1f B/vec at dim %d (raw %.0f), i.e. mem/raw <= %.3f\n",
+              goal, d.db.dim, raw, goal / raw);
+  std::printf("\n%-16s %11s %12s %10s %11s %9s %11s %11s %8s %10s\n", "method", "build ms", "us/q single", "mean",
+              "us/q batch", "recall@1", "B/vec heap", "B/vec struct", "mem/raw", "dist/q");
   for (const Row& r : rows) {
+    if (!r.error.empty()) {
+      std::printf("%-16s FAILED: %s\n", r.name.c_str(), r.error.c_str());
+      continue;
+    }
     std::string recall = Fixed(r.recall_single, 4);
     if (r.recall_batch && std::abs(*r.recall_batch - r.recall_single) > 1e-12) recall += "/" + Fixed(*r.recall_batch, 4);
-    std::printf("%-16s %11s %12s %11s %9s %11s %11s\n", r.name.c_str(), Fixed(r.build_ms, 1).c_str(),
-                Fixed(r.us_single, 2).c_str(), r.us_batch ? Fixed(*r.us_batch, 2).c_str() : "-", recall.c_str(),
+    std::string dist = "-";
+    if (r.distances_per_query) dist = Fixed(*r.distances_per_query, *r.distances_per_query >= 100 ? 0 : 1);
+    std::printf("%-16s %11s %12s %10s %11s %9s %11s %11s %8s %10s\n", r.name.c_str(), Fixed(r.build_ms, 1).c_str(),
+                Fixed(r.us_single, 2).c_str(), Fixed(r.us_single_mean, 2).c_str(), r.us_batch ? Fixed(*r.us_batch, 2).c_str() : "-", recall.c_str(),
                 Fixed(r.heap_bytes_per_vector, 1).c_str(),
-                r.structure_bytes_per_vector ? Fixed(*r.structure_bytes_per_vector, 1).c_str() : "-");
+                r.structure_bytes_per_vector ? Fixed(*r.structure_bytes_per_vector, 1).c_str() : "-",
+                r.mem_over_raw ? Fixed(*r.mem_over_raw, 3).c_str() : "-", dist.c_str());
   }
   std::printf("\n");
   for (const Row& r : rows) std::printf("  %-16s %s\n", r.name.c_str(), r.params.c_str());
   std::printf(
-      "us/q single: median over queries, one query per call (lowest of --repeat passes); us/q batch: all queries in one call, total/nq (best of "
-      "<= 3).\nrecall@1: first result is the exact nearest (mvkp brute-force Search) or at the same distance; "
+      "us/q single: median over queries, one query per call (lowest of --repeat passes), mean: their mean (ditto);\n"
+      "us/q batch: all queries in one call, total/nq (best of <= 3), to be compared with the mean.\nrecall@1: first result is the exact nearest (mvkp brute-force Search) or at the same distance; "
       "a/b = single/batch when they differ.\nB/vec heap: heap growth over the build (mallinfo2) / n; "
-      "B/vec struct: the index's arrays as the library exposes them / n.\n");
+      "B/vec struct: the index's arrays as the library exposes them / n; mem/raw: B/vec struct / (4 * dim).\n"
+      "dist/q: exact distance computations per query in the single-query pass (- = not reported).\n");
 }
 
 nlohmann::json ToJson(const Dataset& d, int k, int repeat, const std::vector<Row>& rows,
@@ -199,17 +229,26 @@ nlohmann::json ToJson(const Dataset& d, int k, int repeat, const std::vector<Row
   using nlohmann::json;
   json methods = json::array();
   for (const Row& r : rows) {
+    if (!r.error.empty()) {
+      methods.push_back({{"name", r.name}, {"params", r.params}, {"error", r.error}});
+      continue;
+    }
     methods.push_back({{"name", r.name},
                        {"params", r.params},
                        {"build_ms", r.build_ms},
                        {"us_per_query_single_median", r.us_single},
+                       {"us_per_query_single_mean", r.us_single_mean},
                        {"us_per_query_batch", r.us_batch ? json(*r.us_batch) : json(nullptr)},
                        {"recall_at_1_single", r.recall_single},
                        {"recall_at_1_batch", r.recall_batch ? json(*r.recall_batch) : json(nullptr)},
                        {"bytes_per_vector_heap", r.heap_bytes_per_vector},
                        {"bytes_per_vector_structure",
                         r.structure_bytes_per_vector ? json(*r.structure_bytes_per_vector) : json(nullptr)},
-                       {"structure_how", r.structure_how}});
+                       {"structure_how", r.structure_how},
+                       {"mem_over_raw", r.mem_over_raw ? json(*r.mem_over_raw) : json(nullptr)},
+                       {"distance_computations_per_query",
+                        r.distances_per_query ? json(*r.distances_per_query) : json(nullptr)},
+                       {"distances_how", r.distances_how}});
   }
   return {{"data",
            {{"source", d.source},
@@ -219,12 +258,17 @@ nlohmann::json ToJson(const Dataset& d, int k, int repeat, const std::vector<Row
             {"k", k},
             {"generate_ms", d.generate_ms}}},
           {"threads", 1},
+          {"repeat", repeat},
           {"timing",
-           "single: median us over queries, one per call, lowest of " + std::to_string(repeat) +
+           "single: median (and mean) us over queries, one per call, lowest of " + std::to_string(repeat) +
                " pass(es); batch: one call for all queries, best of <= 3, total/nq"},
           {"environment", env},
           {"ground_truth", "mvkp brute-force Search(k=1); a result at the same distance (double) counts as correct"},
           {"bytes_per_vector_heap_how", "mallinfo2 uordblks+hblkhd after build minus before, / n"},
+          {"memory_goal",
+           {{"rule", "structure <= 1.1 x raw + 1 byte per dimension and vector"},
+            {"bytes_per_vector", MemoryGoalBytesPerVector(d.db.dim)},
+            {"mem_over_raw", MemoryGoalBytesPerVector(d.db.dim) / (4.0 * d.db.dim)}}},
           {"methods", methods}};
 }
 
@@ -284,6 +328,11 @@ int Run(Args& a) {
     std::fprintf(stderr, "wrote %s (%zu x %d) and %s (%zu)\n", a.dump[0].c_str(), d.db.n, d.db.dim, a.dump[1].c_str(),
                  d.queries.n);
   }
+  if (a.dump_only) {
+    std::printf("data: %s\nn=%zu nq=%zu dim=%d; generated/loaded in %.1f s\n", d.source.c_str(), d.db.n, d.queries.n,
+                d.db.dim, d.generate_ms / 1000);
+    return 0;
+  }
 
   Timer gt_timer;
   const std::vector<std::int64_t> gt = GroundTruth(d.db, d.queries);
@@ -292,9 +341,20 @@ int Run(Args& a) {
   std::vector<Row> rows;
   for (const auto& m : methods) {
     Timer t;
-    rows.push_back(RunMethod(m, d.db, d.queries, a.k, gt, a.batch_seconds, a.repeat));
-    std::fprintf(stderr, "%-16s done in %.1f s\n", m.name.c_str(), t.ElapsedMs() / 1000);
+    // A method that throws gets an error row; the others still run.
+    try {
+      rows.push_back(RunMethod(m, d.db, d.queries, a.k, gt, a.batch_seconds, a.repeat));
+      std::fprintf(stderr, "%-16s done in %.1f s\n", m.name.c_str(), t.ElapsedMs() / 1000);
+    } catch (const std::exception& e) {
+      Row r;
+      r.name = m.name;
+      r.params = m.params;
+      r.error = e.what();
+      rows.push_back(r);
+      std::fprintf(stderr, "%-16s FAILED: %s\n", m.name.c_str(), e.what());
+    }
   }
+  const bool failed = std::any_of(rows.begin(), rows.end(), [](const Row& r) { return !r.error.empty(); });
 
   std::vector<std::string> env;
   env.push_back(std::string("mvkp brute force kernels: ") +
@@ -305,7 +365,7 @@ int Run(Args& a) {
     std::printf("%s\n", ToJson(d, a.k, a.repeat, rows, env).dump(2).c_str());
   else
     PrintTable(d, a.k, rows, env);
-  return 0;
+  return failed ? 1 : 0;
 }
 
 }  // namespace
@@ -329,13 +389,14 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::IsMember({64, 128}));
   app.add_option("--random", a.random, "random uniform data: N DIM")->expected(2);
-  app.add_option("--dump", a.dump, "save the database and queries used: DB.fvecs Q.fvecs")->expected(2);
+  auto* dump = app.add_option("--dump", a.dump, "save the database and queries used: DB.fvecs Q.fvecs")->expected(2);
+  app.add_flag("--dump-only", a.dump_only, "with --dump: write the files and exit without benchmarking")->needs(dump);
   app.add_option("--methods", a.methods, "comma-separated subset of the methods (default: all)");
   app.add_flag("--list-methods", a.list, "print the compiled-in methods and exit");
   app.add_option("--seed", a.seed, "seed for random data and sampling")->capture_default_str();
   app.add_option("--batch-seconds", a.batch_seconds, "repeat batched runs (up to 3) while under this time")
       ->capture_default_str();
-  app.add_option("--repeat", a.repeat, "passes of one-query-per-call timing; the lowest median is reported")
+  app.add_option("--repeat", a.repeat, "passes of one-query-per-call timing; the lowest median (and mean) is reported")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000));
   try {

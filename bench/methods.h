@@ -36,6 +36,15 @@ class Method {
   // Bytes the index holds according to its own data structures (sizes of its
   // arrays as the library exposes them), or < 0 when it does not expose them.
   virtual double StructureBytes() const { return -1; }
+
+  // Exact distance computations (full query-to-vector distances; the cost
+  // measure of thesis Fig. 5.3). ResetDistanceCount() runs before every timed
+  // pass of single queries; DistanceComputations() after the last one returns
+  // that pass's total over the nq queries, or < 0 when the method does not
+  // report it. A method without a counter of its own may count by searching
+  // the queries again (untimed).
+  virtual void ResetDistanceCount() {}
+  virtual double DistanceComputations(const float* queries, std::size_t nq, int k) { return -1; }
 };
 
 struct MethodInfo {
@@ -43,6 +52,7 @@ struct MethodInfo {
   std::string params;  // construction and search parameters, for the report
   std::string structure_how;  // how StructureBytes() counts, or "" if it does not
   std::function<std::unique_ptr<Method>()> make;
+  std::string distances_how = "";  // how DistanceComputations() counts, or "" if it does not
 };
 
 // Every compiled-in method, in report order.

@@ -3,6 +3,7 @@
 
 #include <faiss/IndexFlat.h>
 #include <faiss/IndexHNSW.h>
+#include <faiss/impl/HNSW.h>
 #include <faiss/utils/distances.h>
 
 #include "methods.h"
@@ -33,6 +34,10 @@ class FaissFlat : public FaissMethod<faiss::IndexFlatL2> {
     index_->add(faiss::Index::idx_t(n), data);
   }
   double StructureBytes() const override { return double(index_->codes.size()); }
+  // Exhaustive: every query is compared with every vector.
+  double DistanceComputations(const float*, std::size_t nq, int) override {
+    return double(nq) * double(index_->ntotal);
+  }
 };
 
 class FaissHnsw : public FaissMethod<faiss::IndexHNSWFlat> {
@@ -50,19 +55,31 @@ class FaissHnsw : public FaissMethod<faiss::IndexHNSWFlat> {
     if (const auto* flat = dynamic_cast<const faiss::IndexFlatCodes*>(index_->storage)) bytes += double(flat->codes.size());
     return bytes;
   }
+  // faiss::hnsw_stats (global, summed over searches): the distances of the
+  // level-0 search (each newly visited vector once), not those of the greedy
+  // descent through the upper levels. FAISS < 1.7.4 adds them to n3 (ndis only
+  // on the unbounded-queue path), later versions to ndis.
+  void ResetDistanceCount() override { faiss::hnsw_stats.reset(); }
+  double DistanceComputations(const float*, std::size_t, int) override {
+#if FAISS_VERSION_MAJOR == 1 && FAISS_VERSION_MINOR == 7 && FAISS_VERSION_PATCH < 4
+    return double(faiss::hnsw_stats.n3) + double(faiss::hnsw_stats.ndis);
+#else
+    return double(faiss::hnsw_stats.ndis);
+#endif
+  }
 };
 
 }  // namespace
 
 void AddFaissMethods(std::vector<MethodInfo>& out) {
-  out.push_back({"faiss-flat", "IndexFlatL2 (exact)", "codes.size()",
-                 [] { return std::make_unique<FaissFlat>(); }});
+  out.push_back({"faiss-flat", "IndexFlatL2 (exact)", "codes.size()", [] { return std::make_unique<FaissFlat>(); },
+                 "n per query (exhaustive)"});
   out.push_back({"faiss-hnsw",
                  "IndexHNSWFlat M=" + std::to_string(FaissHnsw::kM) + " efConstruction=" +
                      std::to_string(faiss::HNSW(FaissHnsw::kM).efConstruction) +
                      " efSearch=" + std::to_string(FaissHnsw::kEfSearch),
                  "storage codes + hnsw neighbors, levels, offsets",
-                 [] { return std::make_unique<FaissHnsw>(); }});
+                 [] { return std::make_unique<FaissHnsw>(); }, "faiss::hnsw_stats (level-0 search only: n3 + ndis before FAISS 1.7.4, ndis after)"});
 }
 
 std::string FaissEnvironment() {
