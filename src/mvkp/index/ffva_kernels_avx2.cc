@@ -33,6 +33,37 @@ inline void SumsB(const std::uint8_t* codes, int npairs, const std::uint8_t* lut
   }
 }
 
+// As SumsB, but gives up on the blocks once every lane's partial sum exceeds
+// thr (sums only grow, so those lanes cannot pass): checked every 4 pairs.
+// The check costs more than it saves below ~32 dimensions (measured on WH
+// 20-D: 2.6 -> 2.8-3.4 us per query at 4k), so it is used from 16 pairs up.
+// Returns false when it gave up (acc then holds partial sums, all > thr).
+template <int B, bool kEarlyExit>
+inline bool SumsUpTo(const std::uint8_t* codes, int npairs, const std::uint8_t* luts, __m256i t, __m256i* acc) {
+  const __m256i low4 = _mm256_set1_epi8(0x0F);
+  const __m256i zero = _mm256_setzero_si256();
+  for (int i = 0; i < B; ++i) acc[i] = zero;
+  const std::size_t stride = std::size_t(npairs) * kBlockLanes;
+  for (int p = 0; p < npairs; ++p) {
+    const __m256i tlo = Table(luts + (2 * p) * 16);
+    const __m256i thi = Table(luts + (2 * p + 1) * 16);
+    for (int i = 0; i < B; ++i) {
+      const __m256i c =
+          _mm256_loadu_si256(reinterpret_cast<const __m256i*>(codes + i * stride + std::size_t(p) * kBlockLanes));
+      const __m256i lo = _mm256_and_si256(c, low4);
+      const __m256i hi = _mm256_and_si256(_mm256_srli_epi16(c, 4), low4);
+      acc[i] = _mm256_adds_epu8(acc[i], _mm256_shuffle_epi8(tlo, lo));
+      acc[i] = _mm256_adds_epu8(acc[i], _mm256_shuffle_epi8(thi, hi));
+    }
+    if (kEarlyExit && (p & 3) == 3 && p + 1 < npairs) {
+      __m256i pass = _mm256_cmpeq_epi8(_mm256_subs_epu8(acc[0], t), zero);
+      for (int i = 1; i < B; ++i) pass = _mm256_or_si256(pass, _mm256_cmpeq_epi8(_mm256_subs_epu8(acc[i], t), zero));
+      if (_mm256_testz_si256(pass, pass)) return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 void FastScanSumsAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
@@ -45,8 +76,9 @@ void FastScanSumsAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs
   }
 }
 
-void FastScanMasksAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
-                       std::uint8_t thr, std::uint8_t* sums, std::uint32_t* masks) {
+template <bool kEarlyExit>
+static void MasksImpl(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
+                      std::uint8_t thr, std::uint8_t* sums, std::uint32_t* masks) {
   const std::size_t stride = std::size_t(npairs) * kBlockLanes;
   const __m256i t = _mm256_set1_epi8(char(thr));
   const __m256i zero = _mm256_setzero_si256();
@@ -57,7 +89,10 @@ void FastScanMasksAvx2(const std::uint8_t* codes, std::size_t nblocks, int npair
   std::size_t b = 0;
   for (; b + 2 <= nblocks; b += 2) {
     __m256i acc[2];
-    SumsB<2>(codes + b * stride, npairs, luts, acc);
+    if (!SumsUpTo<2, kEarlyExit>(codes + b * stride, npairs, luts, t, acc)) {
+      masks[b] = masks[b + 1] = 0;
+      continue;
+    }
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(sums + b * kBlockLanes), acc[0]);
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(sums + (b + 1) * kBlockLanes), acc[1]);
     masks[b] = mask(acc[0]);
@@ -65,9 +100,21 @@ void FastScanMasksAvx2(const std::uint8_t* codes, std::size_t nblocks, int npair
   }
   if (b < nblocks) {
     __m256i acc[1];
-    SumsB<1>(codes + b * stride, npairs, luts, acc);
+    if (!SumsUpTo<1, kEarlyExit>(codes + b * stride, npairs, luts, t, acc)) {
+      masks[b] = 0;
+      return;
+    }
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(sums + b * kBlockLanes), acc[0]);
     masks[b] = mask(acc[0]);
+  }
+}
+
+void FastScanMasksAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
+                      std::uint8_t thr, std::uint8_t* sums, std::uint32_t* masks) {
+  if (npairs >= 16) {
+    MasksImpl<true>(codes, nblocks, npairs, luts, thr, sums, masks);
+  } else {
+    MasksImpl<false>(codes, nblocks, npairs, luts, thr, sums, masks);
   }
 }
 

@@ -21,7 +21,9 @@ void FastScanSumsScalar(const std::uint8_t* codes, std::size_t nblocks, int npai
 void FastScanSumsAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
                       std::uint8_t* sums);
 
-// The sums as above, and masks[b]: bit `lane` set when that lane's sum is <= thr.
+// masks[b]: bit `lane` set when that lane's sum (as above) is <= thr, and the
+// sums of those lanes. Sums of lanes whose bit is clear are unspecified: the
+// SIMD kernel stops adding once no lane of a block can pass.
 void FastScanMasksScalar(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
                          std::uint8_t thr, std::uint8_t* sums, std::uint32_t* masks);
 void FastScanMasksAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs, const std::uint8_t* luts,
