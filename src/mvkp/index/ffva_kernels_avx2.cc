@@ -14,26 +14,7 @@ inline __m256i Table(const std::uint8_t* lut) {
 }
 
 // Sums of B consecutive blocks, tables loaded once per pair for all B.
-template <int B>
-inline void SumsB(const std::uint8_t* codes, int npairs, const std::uint8_t* luts, __m256i* acc) {
-  const __m256i low4 = _mm256_set1_epi8(0x0F);
-  for (int i = 0; i < B; ++i) acc[i] = _mm256_setzero_si256();
-  const std::size_t stride = std::size_t(npairs) * kBlockLanes;
-  for (int p = 0; p < npairs; ++p) {
-    const __m256i tlo = Table(luts + (2 * p) * 16);
-    const __m256i thi = Table(luts + (2 * p + 1) * 16);
-    for (int i = 0; i < B; ++i) {
-      const __m256i c =
-          _mm256_loadu_si256(reinterpret_cast<const __m256i*>(codes + i * stride + std::size_t(p) * kBlockLanes));
-      const __m256i lo = _mm256_and_si256(c, low4);
-      const __m256i hi = _mm256_and_si256(_mm256_srli_epi16(c, 4), low4);
-      acc[i] = _mm256_adds_epu8(acc[i], _mm256_shuffle_epi8(tlo, lo));
-      acc[i] = _mm256_adds_epu8(acc[i], _mm256_shuffle_epi8(thi, hi));
-    }
-  }
-}
-
-// As SumsB, but gives up on the blocks once every lane's partial sum exceeds
+// With kEarlyExit, gives up on the blocks once every lane's partial sum exceeds
 // thr (sums only grow, so those lanes cannot pass): checked every 4 pairs.
 // The check costs more than it saves below ~32 dimensions (measured on WH
 // 20-D: 2.6 -> 2.8-3.4 us per query at 4k), so it is used from 16 pairs up.
@@ -71,7 +52,7 @@ void FastScanSumsAvx2(const std::uint8_t* codes, std::size_t nblocks, int npairs
   const std::size_t stride = std::size_t(npairs) * kBlockLanes;
   for (std::size_t b = 0; b < nblocks; ++b) {
     __m256i acc[1];
-    SumsB<1>(codes + b * stride, npairs, luts, acc);
+    SumsUpTo<1, false>(codes + b * stride, npairs, luts, _mm256_setzero_si256(), acc);
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(sums + b * kBlockLanes), acc[0]);
   }
 }
