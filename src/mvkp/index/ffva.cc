@@ -9,12 +9,11 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <limits>
 #include <numeric>
 #include <vector>
 
+#include "mvkp/core/atomic_file.h"
 #include "mvkp/core/crc32.h"
 #include "mvkp/core/error.h"
 #include "mvkp/index/internal/ffva_kernels.h"
@@ -783,26 +782,7 @@ void SaveIndex(const KnnIndex& index, const std::string& path) {
   Require(f != nullptr, ErrorCode::kInvalidArgument,
           "only FFVA indexes (modes exact and approx) can be saved, not '" + index.name() + "'");
   Require(f->storage().size() >= kHeaderBytes, ErrorCode::kInvalidArgument, "cannot save an index that was never built");
-  const std::filesystem::path target(path);
-  const std::filesystem::path tmp = target.string() + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error(ErrorCode::kIo, path + ": cannot write index (" + std::strerror(errno) + ")");
-    out.write(reinterpret_cast<const char*>(f->storage().data()), std::streamsize(f->storage().size()));
-    out.flush();
-    if (!out) {
-      out.close();
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw Error(ErrorCode::kIo, path + ": write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, target, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Error(ErrorCode::kIo, path + ": cannot write index (" + ec.message() + ")");
-  }
+  WriteFileAtomically(path, f->storage().data(), f->storage().size());
 }
 
 std::unique_ptr<KnnIndex> LoadIndex(const std::string& path, const IndexLoadOptions& options) {

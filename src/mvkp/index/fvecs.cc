@@ -10,8 +10,8 @@
 #include <memory>
 #include <system_error>
 
-#include <unistd.h>
 
+#include "mvkp/core/atomic_file.h"
 #include "mvkp/core/error.h"
 
 namespace mvkp {
@@ -130,34 +130,17 @@ void WriteFvecs(const std::string& path, const float* data, std::size_t n, int d
                                                      NonFiniteName(v) + ") at component " + std::to_string(j));
     }
 
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    File f(std::fopen(tmp.c_str(), "wb"));
-    if (!f) Fail(ErrorCode::kIo, path, std::string("cannot write (temporary file): ") + std::strerror(errno));
-    bool ok = true;
+  WriteFileAtomically(path, [&](std::FILE* f) {
     std::vector<float> row(static_cast<std::size_t>(dim));
-    for (std::size_t i = 0; i < n && ok; ++i) {
+    for (std::size_t i = 0; i < n; ++i) {
       std::int32_t d = dim;
       LittleEndian32(&d, 1);
       std::memcpy(row.data(), data + i * std::size_t(dim), sizeof(float) * std::size_t(dim));
       LittleEndian32(row.data(), row.size());
-      ok = std::fwrite(&d, 4, 1, f.get()) == 1 && std::fwrite(row.data(), 4, row.size(), f.get()) == row.size();
+      if (std::fwrite(&d, 4, 1, f) != 1 || std::fwrite(row.data(), 4, row.size(), f) != row.size()) return false;
     }
-    ok = ok && std::fflush(f.get()) == 0 && ::fsync(::fileno(f.get())) == 0;
-    const int err = errno;
-    if (!ok || std::fclose(f.release()) != 0) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      Fail(ErrorCode::kIo, path, std::string("write failed: ") + std::strerror(ok ? errno : err));
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignore;
-    fs::remove(tmp, ignore);
-    Fail(ErrorCode::kIo, path, "cannot rename temporary file into place: " + ec.message());
-  }
+    return true;
+  });
 }
 
 }  // namespace mvkp

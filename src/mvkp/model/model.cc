@@ -7,6 +7,7 @@
 #include <fstream>
 #include <type_traits>
 
+#include "mvkp/core/atomic_file.h"
 #include "mvkp/core/crc32.h"
 #include "mvkp/core/error.h"
 
@@ -199,24 +200,7 @@ Model DeserializeModel(const std::uint8_t* data, std::size_t size, const std::st
 
 void SaveModel(const Model& model, const std::string& path) {
   const auto bytes = SerializeModel(model);
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error(ErrorCode::kIo, path + ": cannot open for writing");
-    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw Error(ErrorCode::kIo, path + ": write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Error(ErrorCode::kIo, path + ": cannot replace file: " + ec.message());
-  }
+  WriteFileAtomically(path, bytes.data(), bytes.size());
 }
 
 Model LoadModel(const std::string& path) {
