@@ -267,15 +267,13 @@ class FfvaIndex final : public KnnIndex {
   friend void mvkp::SaveIndex(const KnnIndex&, const std::string&);
 };
 
-// Cell of value v in dimension j: the number of edges <= v, so that
-// edges[c-1] <= v < edges[c] (with -inf / +inf beyond the ends).
-inline int CellOf(const float* edges, float v) {
+// Cell of value v from a dimension's 17 stored boundaries (-inf, 15 edges,
+// +inf): the number of edges <= v, so that row[c] <= v < row[c + 1].
+inline int CellOfRow(const float* row, float v) {
   int c = 0;
-  for (int e = 0; e < kEdges; ++e) c += v >= edges[e];
+  for (int e = 1; e <= kEdges; ++e) c += v >= row[e];
   return c;
 }
-// The same from a row of 17 stored boundaries.
-inline int CellOfRow(const float* row, float v) { return CellOf(row + 1, v); }
 
 // Per-query state: the query, its byte tables and their scale.
 struct FfvaIndex::Query {
