@@ -18,6 +18,8 @@ namespace {
 struct TrainArgs {
   std::string image, output;
   bool quiet = false;
+  bool explain = false;
+  int explain_rows = 40;
   TrainOptions opt;
 };
 
@@ -39,12 +41,39 @@ struct PairArgs {
   MatchOptions match;
 };
 
+// Per-track scores in the style of thesis Table 3.1.
+void PrintExplain(const TrainReport& r, int rows) {
+  std::printf("view tracks: %d candidates, %d eligible (SS >= L_SS = %d of %d views: %d general + %d rotation), %d kept\n",
+              r.candidates, r.eligible, r.min_stability, r.general_views + r.rotation_views, r.general_views,
+              r.rotation_views, r.kept);
+  std::printf("ranking: %s, alpha %.2f: FRS = alpha*RRS' + (1-alpha)*SS, RRS = DS/VS rescaled to [L_SS, N_V]\n",
+              SelectionName(r.select), r.alpha);
+  std::printf("%5s %8s %8s %4s %5s %8s %9s %9s %7s %7s %5s\n", "rank", "x", "y", "SS", "gen", "DS", "VS", "RRS",
+              "RRS'", "FRS", "kept");
+  const int n = rows < 0 ? int(r.tracks.size()) : std::min<int>(rows, int(r.tracks.size()));
+  auto line = [](const TrackReport& t) {
+    if (t.rank < 0) {
+      std::printf("%5s %8.1f %8.1f %4d %5d %8s %9s %9s %7s %7s %5s\n", "-", t.x, t.y, t.score.ss, t.general, "-", "-",
+                  "-", "-", "-", "no");
+      return;
+    }
+    std::printf("%5d %8.1f %8.1f %4d %5d %8.4f %9.6f %9.2f %7.2f %7.2f %5s\n", t.rank + 1, t.x, t.y, t.score.ss,
+                t.general, t.score.ds, t.score.vs, t.score.rrs, t.score.rrs_scaled, t.score.frs, t.kept ? "yes" : "no");
+  };
+  for (int i = 0; i < n; ++i) line(r.tracks[i]);
+  if (n < int(r.tracks.size()))
+    std::printf("... %zu more (--explain-rows -1 prints all)\n", r.tracks.size() - std::size_t(n));
+  std::printf("time: views %.0f ms, scoring %.0f ms, k-means %.0f ms\n", r.views_ms, r.score_ms, r.kmeans_ms);
+}
+
 int RunTrain(TrainArgs& a) {
   const cv::Mat img = LoadImageGray(a.image);
   if (!a.quiet) a.opt.progress = [](int d, int t) { Progress("training: view", d, t); };
   Timer t;
-  const Model model = TrainNamed(a.image, img, a.opt);
+  TrainReport report;
+  const Model model = TrainNamed(a.image, img, a.opt, &report);
   const double ms = t.ElapsedMs();
+  if (a.explain) PrintExplain(report, a.explain_rows);
   SaveModel(model, a.output);
   const auto bytes = std::filesystem::file_size(a.output);
   std::printf("trained %s (%dx%d): %zu locations, %d centres x %d dims, %.0f ms -> %s (%.1f KB)\n", a.image.c_str(),
@@ -130,6 +159,8 @@ void RegisterTrain(CLI::App& app, int* code) {
   c->add_option("IMAGE", a->image, "object image")->required();
   c->add_option("-o,--output", a->output, "model file to write")->required();
   c->add_flag("-q,--quiet", a->quiet, "no progress line");
+  c->add_flag("--explain", a->explain, "print every view track's RIFS scores (thesis Table 3.1)");
+  c->add_option("--explain-rows", a->explain_rows, "rows --explain prints, best first (-1: all)")->capture_default_str();
   AddTrainOptions(c, &a->opt);
   c->callback([a, code] { *code = RunTrain(*a); });
 }

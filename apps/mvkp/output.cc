@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -27,6 +28,44 @@ void AddTrainOptions(CLI::App* cmd, TrainOptions* o) {
   cmd->add_option("--view-noise", o->view_noise, "noise sigma of training views (grey levels)")->capture_default_str();
   cmd->add_option("--track-radius", o->track_radius, "view pixels within which detections form one track")->capture_default_str();
   cmd->add_flag("!--no-orient", o->orient, "thesis-literal patches: no orientation normalisation");
+  const std::map<std::string, Selection> sel = {{"rifs", Selection::kRifs}, {"stability", Selection::kStability}};
+  cmd->add_option("--select", o->select, "rank view tracks by: rifs (SPEC 4) | stability")
+      ->transform(CLI::CheckedTransformer(sel, CLI::ignore_case))
+      ->default_str(SelectionName(o->select));
+  cmd->add_option("--alpha", o->alpha, "RIFS weight of the ranking score, 0..1 (0 = stability only)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option_function<std::string>(
+         "--keep",
+         [o](const std::string& v) {
+           // "N" locations or "P%" of the eligible view tracks.
+           try {
+             std::size_t used = 0;
+             const double x = std::stod(v, &used);
+             if (used == v.size() && x == std::floor(x) && x >= 1 && x <= 100000) {
+               o->locations = int(x);
+               o->keep_fraction = 0;
+               return;
+             }
+             if (used + 1 == v.size() && v.back() == '%' && x > 0 && x <= 100) {
+               o->keep_fraction = x / 100.0;
+               return;
+             }
+           } catch (const std::exception&) {
+           }
+           throw CLI::ValidationError("--keep", "expected a count N (1..100000) or a percentage P% (0 < P <= 100), got '" + v + "'");
+         },
+         "keep N view tracks, or P% of the eligible ones (same as --locations N)")
+      ->default_str(std::to_string(o->locations));
+  cmd->add_option("--min-stability", o->min_stability, "L_SS: drop tracks seen in fewer views (0: auto)")
+      ->capture_default_str();
+  cmd->add_option("--rotation-views", o->rotation_views, "rotation-dominant views used only to score tracks")
+      ->capture_default_str();
+  using SV = TrainOptions::StatsViews;
+  const std::map<std::string, SV> stats = {{"rotation", SV::kRotation}, {"general", SV::kGeneral}, {"all", SV::kAll}};
+  cmd->add_option("--rifs-stats", o->stats_views, "views whose descriptors give DS and VS: all (SPEC 4) | rotation | general")
+      ->transform(CLI::CheckedTransformer(stats, CLI::ignore_case))
+      ->default_str("all");
 }
 
 void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
@@ -59,9 +98,9 @@ nlohmann::json TimingJson(const MatchTiming& t) {
           {"verify", t.verify_ms}, {"query", t.total()}};
 }
 
-Model TrainNamed(const std::string& path, const cv::Mat& gray, const TrainOptions& options) {
+Model TrainNamed(const std::string& path, const cv::Mat& gray, const TrainOptions& options, TrainReport* report) {
   try {
-    return Train(gray, options);
+    return Train(gray, options, report);
   } catch (const Error& e) {
     if (e.code() == ErrorCode::kNoTexture) throw Error(e.code(), path + ": " + e.what());
     throw;

@@ -22,7 +22,8 @@ nlohmann::json HomographyJson(const MatchResult& r);  // 3x3 array or null
 nlohmann::json TimingJson(const MatchTiming& t);
 
 // Train() on an image loaded from `path`; errors name the file.
-Model TrainNamed(const std::string& path, const cv::Mat& gray, const TrainOptions& options);
+Model TrainNamed(const std::string& path, const cv::Mat& gray, const TrainOptions& options,
+                 TrainReport* report = nullptr);
 
 // Frame with the outline, inliers (green) and other matches (red).
 cv::Mat DrawMatch(const cv::Mat& frame_gray_or_bgr, const MatchResult& r);

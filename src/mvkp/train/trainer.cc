@@ -13,12 +13,14 @@
 #include "mvkp/describe/features.h"
 #include "mvkp/synth/synth.h"
 #include "mvkp/train/kmeans.h"
+#include "mvkp/rifs/rifs.h"
 
 namespace mvkp {
 namespace {
 
 struct Detection {
-  int view;
+  int view;          // general views first, then rotation views
+  bool general;      // from a general view (its descriptor feeds k-means)
   float ox, oy;      // object coordinates (training resolution)
   float radius;      // association radius in object pixels
   int desc;          // row in the descriptor pool
@@ -26,10 +28,18 @@ struct Detection {
 
 }  // namespace
 
+const char* SelectionName(Selection s) { return s == Selection::kRifs ? "rifs" : "stability"; }
+
 void TrainOptions::Check() const {
   auto in = [](double v, double lo, double hi) { return v >= lo && v <= hi; };
   Require(in(views, 10, 5000), ErrorCode::kInvalidArgument, "views must be in 10..5000, got " + std::to_string(views));
   Require(in(locations, 1, 100000), ErrorCode::kInvalidArgument, "locations must be in 1..100000, got " + std::to_string(locations));
+  Require(in(keep_fraction, 0, 1), ErrorCode::kInvalidArgument, "keep fraction must be in (0, 100%], got " + std::to_string(keep_fraction));
+  Require(in(alpha, 0, 1), ErrorCode::kInvalidArgument, "alpha must be in [0, 1], got " + std::to_string(alpha));
+  Require(in(rotation_views, 0, 3600), ErrorCode::kInvalidArgument, "rotation views must be in 0..3600, got " + std::to_string(rotation_views));
+  Require(in(min_stability, 0, views + rotation_views), ErrorCode::kInvalidArgument,
+          "min stability must be in 0.." + std::to_string(views + rotation_views) + " (the number of views), got " +
+              std::to_string(min_stability));
   Require(in(clusters, 1, 1000), ErrorCode::kInvalidArgument, "clusters must be in 1..1000, got " + std::to_string(clusters));
   Require(in(kernels, 1, 1023), ErrorCode::kInvalidArgument, "kernels must be in 1..1023, got " + std::to_string(kernels));
   Require(in(points_per_view, 10, 100000), ErrorCode::kInvalidArgument, "points per view must be in 10..100000");
@@ -44,7 +54,7 @@ void TrainOptions::Check() const {
           "scale range must satisfy 0 < min <= max <= 10");
 }
 
-Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
+Model Train(const cv::Mat& object_in, const TrainOptions& opt, TrainReport* report) {
   opt.Check();
   CV_Assert(object_in.type() == CV_8UC1);
   Timer total;
@@ -73,7 +83,16 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
   vso.min_scale = opt.min_scale;
   vso.max_scale = opt.max_scale;
   vso.seed = opt.seed;
-  const auto params = SampleAffineViews(opt.views, vso);
+  auto params = SampleAffineViews(opt.views, vso);
+  // Rotation-dominant views (thesis Fig. 3.5): scale 1, one every 360/n degrees.
+  // Stability selection ranks by the general views alone (the MVKP baseline).
+  const int rotation_views = opt.select == Selection::kRifs ? opt.rotation_views : 0;
+  for (int k = 0; k < rotation_views; ++k) {
+    AffineParams r;
+    r.theta = 2.0 * CV_PI * k / rotation_views;
+    params.push_back(r);
+  }
+  const int total_views = int(params.size());
   cv::RNG rng(opt.seed * 0x9E3779B97F4A7C15ull + 1);
 
   // Anti-aliasing: the object blurred for a few shrink factors, computed once
@@ -102,7 +121,7 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
   const int margin = opt.patch / 2 + 4;
   const double w = object.cols, h = object.rows;
   const float edge_margin = 4.f;  // points this close to the object's outline are dropped
-  for (int v = 0; v < opt.views; ++v) {
+  for (int v = 0; v < total_views; ++v) {
     const cv::Matx22d A = AffineMatrix(params[v]);
     // Place the warped object with a margin of background around it.
     const std::vector<cv::Point2d> c = {{0, 0}, {w - 1, 0}, {w - 1, h - 1}, {0, h - 1}};
@@ -157,11 +176,12 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
       if (!inside(kp.x, kp.y)) continue;
       const cv::Vec2d o = Ai * cv::Vec2d(kp.x - tx, kp.y - ty);
       if (o[0] < 0 || o[1] < 0 || o[0] > w - 1 || o[1] > h - 1) continue;
-      dets.push_back({v, float(o[0]), float(o[1]), radius, int(pool.size() / dims)});
+      dets.push_back({v, v < opt.views, float(o[0]), float(o[1]), radius, int(pool.size() / dims)});
       pool.insert(pool.end(), f.descriptors.ptr<float>(i), f.descriptors.ptr<float>(i) + dims);
     }
-    if (opt.progress) opt.progress(v + 1, opt.views);
+    if (opt.progress) opt.progress(v + 1, total_views);
   }
+  const double views_ms = total.ElapsedMs();
 
   // Candidate locations: peaks of the detection density in object coordinates.
   cv::Mat density = cv::Mat::zeros(object.size(), CV_32F);
@@ -178,6 +198,7 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
       const float v = density.at<float>(y, x);
       if (v > 0.15f && v >= dil.at<float>(y, x)) cands.push_back({float(x), float(y), v});
     }
+  std::stable_sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.density > b.density; });
 
   // Associate each detection with the nearest candidate within its radius.
   const int cell = 8;
@@ -214,30 +235,51 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
     if (!replaced) m.push_back(di);
   }
 
-  // Rank by stability (views in which the location was detected).
-  std::vector<int> order(cands.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    if (members[a].size() != members[b].size()) return members[a].size() > members[b].size();
-    return cands[a].density > cands[b].density;
-  });
-  const int min_stability = std::max(3, opt.views / 20);
+  // Score the view tracks (SPEC §4) and rank them.
+  Timer score_timer;
+  RifsOptions ro;
+  ro.alpha = opt.select == Selection::kRifs ? opt.alpha : 0.0;
+  ro.num_views = total_views;
+  ro.min_stability = opt.min_stability > 0 ? opt.min_stability : std::max(3, total_views / 20);
+  std::vector<std::vector<int>> track_rows(cands.size());
+  std::vector<int> ss(cands.size());
+  using SV = TrainOptions::StatsViews;
+  const SV stats = rotation_views == 0 ? SV::kAll : opt.stats_views;
+  for (std::size_t c = 0; c < cands.size(); ++c) {
+    ss[c] = int(members[c].size());
+    for (int di : members[c])
+      if (stats == SV::kAll || (stats == SV::kGeneral) == dets[di].general) track_rows[c].push_back(dets[di].desc);
+  }
+  const std::vector<TrackScore> scores = ScoreTracks(pool.data(), dims, track_rows, ro, &ss);
+  // Candidates are in decreasing density, so ties fall to the denser peak.
+  const std::vector<int> order = RankTracks(scores);
+  const double score_ms = score_timer.ElapsedMs();
+  auto general_count = [&](int ci) {
+    int n = 0;
+    for (int di : members[ci]) n += dets[di].general;
+    return n;
+  };
   int stable = 0;
-  for (int ci : order) stable += int(members[ci].size()) >= min_stability;
+  for (int ci : order) stable += general_count(ci) > 0;
   if (stable < opt.min_locations)
     throw Error(ErrorCode::kNoTexture, "target has too little texture to train: " + std::to_string(stable) +
                                            " stable interest points, at least " + std::to_string(opt.min_locations) +
                                            " needed");
+  const int keep = opt.keep_fraction > 0 ? std::max(1, int(std::lround(opt.keep_fraction * stable))) : opt.locations;
 
+  Timer kmeans_timer;
   Model model;
   model.object_width = object_in.cols;
   model.object_height = object_in.rows;
   std::vector<float> descs;
   std::vector<std::int32_t> labels;
   std::vector<float> samples, centres;
+  std::vector<char> kept(cands.size(), 0);
   for (int ci : order) {
-    if (int(model.locations.size()) >= opt.locations) break;
-    if (int(members[ci].size()) < min_stability) break;
+    if (int(model.locations.size()) >= keep) break;
+    const int ng = general_count(ci);
+    if (ng == 0) continue;  // seen in rotation views only: nothing to describe it with
+    kept[ci] = 1;
     const int loc = int(model.locations.size());
     // Sub-pixel location: mean of the member detections in object coordinates.
     double sx = 0, sy = 0;
@@ -249,15 +291,48 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
     sy /= double(members[ci].size());
     model.locations.push_back({float((sx + 0.5) * to_input - 0.5), float((sy + 0.5) * to_input - 0.5),
                                int(members[ci].size())});
+    // Rotation views score the tracks; only general views give the descriptors.
     samples.clear();
     for (int di : members[ci]) {
+      if (!dets[di].general) continue;
       const float* p = &pool[std::size_t(dets[di].desc) * dims];
       samples.insert(samples.end(), p, p + dims);
     }
-    KMeans(samples.data(), int(members[ci].size()), dims, opt.clusters, opt.kmeans_iterations,
+    KMeans(samples.data(), ng, dims, opt.clusters, opt.kmeans_iterations,
            opt.seed + 7919ull * std::uint64_t(loc), centres);
     descs.insert(descs.end(), centres.begin(), centres.end());
     for (std::size_t c = 0; c < centres.size() / dims; ++c) labels.push_back(loc);
+  }
+  const double kmeans_ms = kmeans_timer.ElapsedMs();
+
+  if (report) {
+    TrainReport& r = *report;
+    r = TrainReport{};
+    r.general_views = opt.views;
+    r.rotation_views = rotation_views;
+    r.min_stability = ro.min_stability;
+    r.select = opt.select;
+    r.alpha = ro.alpha;
+    r.candidates = int(cands.size());
+    r.eligible = int(order.size());
+    r.kept = int(model.locations.size());
+    r.scale_to_input = to_input;
+    auto add = [&](int ci, int rank) {
+      TrackReport t;
+      t.x = float((cands[ci].x + 0.5) * to_input - 0.5);
+      t.y = float((cands[ci].y + 0.5) * to_input - 0.5);
+      t.score = scores[ci];
+      t.general = general_count(ci);
+      t.rank = rank;
+      t.kept = kept[ci];
+      r.tracks.push_back(t);
+    };
+    for (int i = 0; i < int(order.size()); ++i) add(order[i], i);
+    for (int ci = 0; ci < int(cands.size()); ++ci)
+      if (!scores[ci].eligible) add(ci, -1);
+    r.views_ms = views_ms;
+    r.score_ms = score_ms;
+    r.kmeans_ms = kmeans_ms;
   }
   model.descriptors = cv::Mat(int(labels.size()), dims, CV_32F, descs.data()).clone();
   model.labels = labels;
@@ -279,6 +354,7 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt) {
   p.min_scale = float(opt.min_scale);
   p.max_scale = float(opt.max_scale);
   p.train_ms = total.ElapsedMs();
+  if (report) report->total_ms = p.train_ms;
   return model;
 }
 

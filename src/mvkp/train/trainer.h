@@ -10,12 +10,29 @@
 #include <opencv2/core.hpp>
 
 #include "mvkp/model/model.h"
+#include "mvkp/rifs/rifs.h"
 
 namespace mvkp {
 
+// How view tracks are ranked before the best are kept.
+enum class Selection {
+  kStability,  // by stability SS over the general views (the MVKP baseline; no rotation views)
+  kRifs,       // by the RIFS final score FRS over general + rotation views (SPEC §4); alpha 0 = SS only
+};
+
 struct TrainOptions {
   int views = 100;            // N_V synthetic affine views (thesis: 50-100)
-  int locations = 200;        // object locations kept, most stable first (thesis: 100-200)
+  int locations = 200;        // object locations kept, best ranked first (thesis: 100-200)
+  double keep_fraction = 0;   // > 0: keep this fraction of the eligible tracks instead (thesis: 0.3)
+  Selection select = Selection::kStability;  // RIFS did not measure better (README, "RIFS")
+  double alpha = 0.5;         // RIFS weight of the ranking score (0: stability only)
+  int rotation_views = 72;    // RIFS only: rotation-dominant views (every 360/n degrees), used for scoring only
+  int min_stability = 0;      // L_SS: tracks in fewer scoring views are dropped (0: max(3, views/20))
+  // Which views' descriptors give a track's mean, DS and VS (SS always counts
+  // all views). kAll is SPEC §4 to the letter; kRotation measures only how a
+  // point's descriptor varies when rotated (the thesis's argument against
+  // boundary points); kGeneral only the views the model is built from.
+  enum class StatsViews { kAll, kRotation, kGeneral } stats_views = StatsViews::kAll;
   int clusters = 20;          // k-means centres per location (thesis: 10-20)
   int kernels = 20;           // Walsh–Hadamard kernels = descriptor dims (thesis: 20)
   int patch = 32;             // patch side in pixels (thesis: 32)
@@ -36,8 +53,30 @@ struct TrainOptions {
   void Check() const;         // throws mvkp::Error(kInvalidArgument)
 };
 
+// One view track of the training, as `mvkp train --explain` prints it.
+struct TrackReport {
+  float x = 0, y = 0;  // input-image pixels
+  TrackScore score;    // SS counts general and rotation views
+  int general = 0;     // detections in the general views (the k-means samples)
+  int rank = -1;       // 0 = best; -1 when not eligible (SS < L_SS)
+  bool kept = false;   // became a model location
+};
+
+struct TrainReport {
+  int general_views = 0, rotation_views = 0, min_stability = 0;
+  Selection select = Selection::kRifs;
+  double alpha = 0;
+  int candidates = 0, eligible = 0, kept = 0;
+  double scale_to_input = 1;   // input pixels per training pixel
+  std::vector<TrackReport> tracks;  // ranked first (by rank), then the ineligible ones
+  double views_ms = 0, score_ms = 0, kmeans_ms = 0, total_ms = 0;
+};
+
+const char* SelectionName(Selection s);  // "stability" | "rifs"
+
 // Trains a model from an 8-bit grayscale object image. Throws
-// Error(kNoTexture) when the image has too few stable interest points.
-Model Train(const cv::Mat& object_gray, const TrainOptions& options = {});
+// Error(kNoTexture) when the image has too few stable interest points. If
+// `report` is given it receives every view track's scores.
+Model Train(const cv::Mat& object_gray, const TrainOptions& options = {}, TrainReport* report = nullptr);
 
 }  // namespace mvkp
