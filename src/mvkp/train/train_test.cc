@@ -37,6 +37,65 @@ TEST(KMeans, SeparatesWellSeparatedClustersDeterministically) {
   EXPECT_EQ(a.size(), 4u);
 }
 
+TEST(Train, RifsReportRanksTracksByFinalScoreAndKeepsTheRequestedShare) {
+  TrainOptions o;
+  o.views = 30;
+  o.rotation_views = 36;
+  o.select = Selection::kRifs;
+  o.alpha = 0.5;
+  o.keep_fraction = 0.3;
+  TrainReport r;
+  const Model m = Train(Sample("starry_night.jpg"), o, &r);
+  EXPECT_EQ(r.general_views, 30);
+  EXPECT_EQ(r.rotation_views, 36);
+  EXPECT_EQ(r.min_stability, 3);  // max(3, 66 / 20)
+  ASSERT_GT(r.eligible, 100);
+  EXPECT_NEAR(r.kept, 0.3 * r.eligible, 1.0);
+  EXPECT_EQ(int(m.locations.size()), r.kept);
+  int kept = 0, prev_rank = -1;
+  double prev = 1e300;
+  for (const auto& t : r.tracks) {
+    if (t.rank < 0) {
+      EXPECT_LT(t.score.ss, r.min_stability);
+      EXPECT_FALSE(t.kept);
+      continue;
+    }
+    EXPECT_EQ(t.rank, prev_rank + 1);
+    prev_rank = t.rank;
+    EXPECT_LE(t.score.frs, prev);
+    prev = t.score.frs;
+    EXPECT_LE(t.score.ss, 66);
+    EXPECT_LE(t.general, 30);
+    EXPECT_NEAR(t.score.frs, 0.5 * t.score.rrs_scaled + 0.5 * t.score.ss, 1e-9);
+    EXPECT_GE(t.score.rrs_scaled, r.min_stability - 1e-9);
+    EXPECT_LE(t.score.rrs_scaled, 66 + 1e-9);
+    kept += t.kept;
+  }
+  EXPECT_EQ(kept, r.kept);
+  // Stability selection: general views only, ranked by SS.
+  o.select = Selection::kStability;
+  o.keep_fraction = 0;
+  o.locations = 50;
+  TrainReport s;
+  Train(Sample("starry_night.jpg"), o, &s);
+  EXPECT_EQ(s.rotation_views, 0);
+  EXPECT_EQ(s.kept, 50);
+  for (std::size_t i = 1; i < s.tracks.size() && s.tracks[i].rank >= 0; ++i)
+    EXPECT_GE(s.tracks[i - 1].score.ss, s.tracks[i].score.ss);
+}
+
+TEST(Train, RifsOptionsAreChecked) {
+  TrainOptions o;
+  o.alpha = -0.1;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.keep_fraction = 1.5;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.min_stability = o.views + o.rotation_views + 1;
+  EXPECT_THROW(o.Check(), Error);
+}
+
 TEST(Train, ProducesAStableReproducibleModel) {
   const cv::Mat img = Sample("starry_night.jpg");
   TrainOptions o;
