@@ -14,5 +14,6 @@ void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
 void RegisterEval(CLI::App& app, int* exit_code);
 void RegisterKnn(CLI::App& app, int* exit_code);
+void RegisterQuality(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterBench(app, &code);
   mvkp::cli::RegisterEval(app, &code);
   mvkp::cli::RegisterKnn(app, &code);
+  mvkp::cli::RegisterQuality(app, &code);
   // CLI11 reports "A subcommand is required" for a misspelt one; name it instead.
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;

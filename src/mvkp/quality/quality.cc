@@ -1,0 +1,305 @@
+#include "mvkp/quality/quality.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+
+namespace mvkp {
+namespace {
+
+std::string Fmt(const char* f, double a, double b = 0, double c = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, f, a, b, c);
+  return buf;
+}
+
+// Maps the 0.5th..99.5th intensity percentiles to 0..255, so a global gain or
+// offset does not change what is assessed. Returns the percentile spread.
+double StretchContrast(const cv::Mat& in, cv::Mat& out) {
+  int hist[256] = {0};
+  for (int y = 0; y < in.rows; ++y) {
+    const std::uint8_t* r = in.ptr<std::uint8_t>(y);
+    for (int x = 0; x < in.cols; ++x) ++hist[r[x]];
+  }
+  const double n = double(in.total());
+  auto pct = [&](double q) {
+    double acc = 0;
+    for (int v = 0; v < 256; ++v) {
+      acc += hist[v];
+      if (acc >= q * n) return v;
+    }
+    return 255;
+  };
+  const int lo = pct(0.005), hi = pct(0.995);
+  if (hi <= lo) {
+    out = in.clone();
+    return 0;
+  }
+  // At most 8x: stronger gains turn quantisation steps into false edges.
+  const double gain = std::min(8.0, 255.0 / (hi - lo));
+  const double mid = 0.5 * (lo + hi);
+  cv::Mat lut(1, 256, CV_8U);
+  for (int v = 0; v < 256; ++v)
+    lut.at<std::uint8_t>(v) = cv::saturate_cast<std::uint8_t>(127.5 + (v - mid) * gain);
+  cv::LUT(in, lut, out);
+  return hi - lo;
+}
+
+// Share of 16x16 cells whose mean gradient magnitude shows structure.
+double TextureShare(const cv::Mat& img) {
+  cv::Mat s, gx, gy, mag;
+  cv::GaussianBlur(img, s, cv::Size(), 1.0);
+  cv::Sobel(s, gx, CV_32F, 1, 0, 3, 1.0 / 8);
+  cv::Sobel(s, gy, CV_32F, 0, 1, 3, 1.0 / 8);
+  cv::magnitude(gx, gy, mag);
+  const int cell = 16;
+  int cells = 0, textured = 0;
+  for (int y = 0; y + cell <= img.rows; y += cell)
+    for (int x = 0; x + cell <= img.cols; x += cell) {
+      ++cells;
+      textured += cv::mean(mag(cv::Rect(x, y, cell, cell)))[0] > 6.0;  // grey levels per pixel
+    }
+  return cells ? double(textured) / cells : 0.0;
+}
+
+// Median over the model's locations of (distance from the location's mean
+// descriptor to the nearest other location's mean) / (mean distance between
+// locations, DS of SPEC §4). Repeated elements (tiles, brick, letters) give
+// groups of locations whose means nearly coincide, so the ratio drops.
+// *lookalike_share receives the share of locations below `rel`.
+double DistinctRatio(const Model& m, double rel, double* lookalike_share) {
+  *lookalike_share = 1;
+  const int nl = int(m.locations.size()), d = m.descriptors.cols;
+  if (nl < 2) return 0;
+  std::vector<double> mean(std::size_t(nl) * d, 0.0);
+  std::vector<int> count(nl, 0);
+  for (int i = 0; i < m.descriptors.rows; ++i) {
+    const float* r = m.descriptors.ptr<float>(i);
+    for (int l = 0; l < d; ++l) mean[std::size_t(m.labels[i]) * d + l] += r[l];
+    ++count[m.labels[i]];
+  }
+  for (int j = 0; j < nl; ++j)
+    for (int l = 0; l < d; ++l) mean[std::size_t(j) * d + l] /= std::max(1, count[j]);
+  std::vector<double> nn(nl, INFINITY);
+  double sum = 0;
+  for (int a = 0; a < nl; ++a)
+    for (int b = a + 1; b < nl; ++b) {
+      double d2 = 0;
+      for (int l = 0; l < d; ++l) {
+        const double t = mean[std::size_t(a) * d + l] - mean[std::size_t(b) * d + l];
+        d2 += t * t;
+      }
+      const double dist = std::sqrt(d2);
+      sum += 2 * dist;
+      nn[a] = std::min(nn[a], dist);
+      nn[b] = std::min(nn[b], dist);
+    }
+  const double ds = sum / (double(nl) * (nl - 1));
+  int distinct = 0;
+  for (int j = 0; j < nl; ++j) distinct += nn[j] >= rel * ds;
+  *lookalike_share = 1.0 - double(distinct) / nl;
+  std::nth_element(nn.begin(), nn.begin() + nl / 2, nn.end());
+  return nn[nl / 2] / ds;
+}
+
+double CoverageShare(const std::vector<cv::Point2f>& pts, cv::Size size) {
+  const int g = 6;
+  std::vector<char> hit(g * g, 0);
+  for (const auto& p : pts) {
+    const int cx = std::clamp(int(p.x * g / size.width), 0, g - 1);
+    const int cy = std::clamp(int(p.y * g / size.height), 0, g - 1);
+    hit[cy * g + cx] = 1;
+  }
+  return std::count(hit.begin(), hit.end(), 1) / double(g * g);
+}
+
+}  // namespace
+
+void QualityOptions::Check() const {
+  Require(target_size >= 64 && target_size <= 4096, ErrorCode::kInvalidArgument, "target size must be in 64..4096");
+  Require(test_views >= 1 && test_views <= 10000, ErrorCode::kInvalidArgument, "test views must be in 1..10000");
+  Require(success_px > 0, ErrorCode::kInvalidArgument, "success threshold must be > 0 px");
+  Require(min_contrast >= 0 && min_contrast <= 255, ErrorCode::kInvalidArgument, "min contrast must be in 0..255");
+  const double w = w_detection + w_stable + w_distinct + w_texture + w_coverage;
+  Require(std::abs(w - 1.0) < 1e-6 && w_detection >= 0 && w_stable >= 0 && w_distinct >= 0 && w_texture >= 0 &&
+              w_coverage >= 0,
+          ErrorCode::kInvalidArgument, "quality weights must be >= 0 and sum to 1");
+  Require(good_stable_tracks >= 1 && good_texture > 0 && good_coverage > 0 && good_distinct > repeated_distinct,
+          ErrorCode::kInvalidArgument, "quality targets must be positive");
+  train.Check();
+  match.Check();
+  scene.Check();
+}
+
+QualityReport AssessTarget(const cv::Mat& input, const QualityOptions& o) {
+  o.Check();
+  Require(!input.empty() && input.type() == CV_8UC1, ErrorCode::kInvalidArgument,
+          "quality needs a non-empty 8-bit grayscale image");
+  Timer timer;
+  QualityReport rep;
+  rep.test_views = o.test_views;
+  auto finish = [&](int score, const std::string& code, const std::string& msg) {
+    rep.score = score;
+    rep.verdict = "poor";
+    rep.reasons.push_back({code, msg, 100.0});
+    rep.ms = timer.ElapsedMs();
+    return rep;
+  };
+  if (std::min(input.cols, input.rows) < 32)
+    return finish(0, "too_small",
+                  Fmt("image is %.0fx%.0f pixels; a target needs at least 32 pixels on each side (better: 300+)",
+                      input.cols, input.rows));
+  cv::Mat norm;
+  const double spread = StretchContrast(input, norm);
+  if (spread < o.min_contrast)
+    return finish(0, "uniform",
+                  Fmt("image is nearly uniform (99%% of its pixels lie within %.0f grey levels, %.0f needed): nothing "
+                      "a camera can recognise",
+                      spread, o.min_contrast));
+
+  // Assess at the synth target size, as `mvkp synth` + `mvkp eval` would.
+  const cv::Mat target = PrepareTarget(norm, o.target_size);
+  const double to_input = double(std::max(input.cols, input.rows)) / std::max(target.cols, target.rows);
+  const double texture = TextureShare(target);
+
+  TrainOptions to = o.train;
+  to.progress = nullptr;
+  TrainReport tr;
+  Model model;
+  bool trained = true;
+  try {
+    model = Train(target, to, &tr);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kNoTexture) throw;
+    trained = false;
+  }
+  double soft = 0, hard = 0;
+  std::vector<double> errs;
+  double distinct = 0, coverage = 0, lookalike_share = 1;
+  if (trained) {
+    rep.eligible_tracks = tr.eligible;
+    rep.selected_tracks = tr.kept;
+    std::vector<cv::Point2f> sel;
+    for (const auto& t : tr.tracks) {
+      if (t.rank < 0) continue;
+      const cv::Point2f p(float((t.x + 0.5) * to_input - 0.5), float((t.y + 0.5) * to_input - 0.5));
+      (t.kept ? rep.selected : rep.rejected).push_back(p);
+      if (t.kept) sel.push_back(cv::Point2f(t.x, t.y));
+    }
+    distinct = DistinctRatio(model, o.lookalike, &lookalike_share);
+    coverage = CoverageShare(sel, target.size());
+    const Matcher matcher(model, o.match);
+    for (int i = 0; i < o.test_views; ++i) {
+      const SceneView v = MakeSceneView(target, o.scene, o.seed * 1000003ull + std::uint64_t(i));
+      const MatchResult r = matcher.Match(v.image);
+      const double err = r.found ? MeanCornerError(r.homography, v.H, target.size()) : INFINITY;
+      if (err < o.success_px) {
+        hard += 1;
+        errs.push_back(err);
+      }
+      // Soft credit: 1 within success_px, falling to 0 at twice that.
+      soft += std::clamp((2 * o.success_px - err) / o.success_px, 0.0, 1.0);
+    }
+    hard /= o.test_views;
+    soft /= o.test_views;
+  } else {
+    rep.eligible_tracks = 0;
+  }
+  rep.detection_rate = hard;
+  if (!errs.empty()) {
+    std::sort(errs.begin(), errs.end());
+    rep.median_error_px = errs[errs.size() / 2];
+  }
+
+  auto factor = [&](const char* name, double value, double f, double w) {
+    QualityFactor q{name, value, std::clamp(f, 0.0, 1.0), w, 0, 0};
+    q.points = 100 * w * q.factor;
+    q.lost = 100 * w * (1 - q.factor);
+    rep.factors.push_back(q);
+    return q;
+  };
+  const auto fd = factor("detection", hard, soft, o.w_detection);
+  const auto fs = factor("stable_points", rep.eligible_tracks, double(rep.eligible_tracks) / o.good_stable_tracks, o.w_stable);
+  const auto fr = factor("distinctiveness", distinct, (distinct - o.repeated_distinct) / (o.good_distinct - o.repeated_distinct),
+                         o.w_distinct);
+  const auto ft = factor("texture", texture, texture / o.good_texture, o.w_texture);
+  const auto fc = factor("coverage", coverage, coverage / o.good_coverage, o.w_coverage);
+  double total = 0;
+  for (const auto& f : rep.factors) total += f.points;
+  rep.score = std::clamp(int(std::lround(total)), 0, 100);
+  rep.verdict = rep.score >= 80 ? "excellent" : rep.score >= 60 ? "good" : rep.score >= 40 ? "fair" : "poor";
+
+  const double min_lost = 1.0;  // points; smaller losses are not worth a reason
+  if (fd.lost >= min_lost && trained)
+    rep.reasons.push_back({"low_detection",
+                           Fmt("found within %.0f px in %.0f%% of synthetic test views (perspective, clutter, "
+                               "lighting, blur, noise)",
+                               o.success_px, 100 * hard),
+                           fd.lost});
+  if (!trained)
+    rep.reasons.push_back({"few_stable_points",
+                           "too few stable interest points to train a target at all: the image needs texture "
+                           "(corners, detail) over most of its area",
+                           fs.lost});
+  else if (fs.lost >= min_lost)
+    rep.reasons.push_back(
+        {"few_stable_points",
+         Fmt("only %.0f stable points (seen in enough training views; %.0f or more is good): add detail or "
+             "use a more textured image",
+             rep.eligible_tracks, o.good_stable_tracks),
+         fs.lost});
+  if (fr.lost >= min_lost && trained)
+    rep.reasons.push_back({"repeated_elements",
+                           Fmt("points look alike: %.0f%% of the selected points have a near twin elsewhere in "
+                               "the image (repeated elements such as tiles, brick, windows or text)",
+                               100 * lookalike_share),
+                           fr.lost});
+  if (ft.lost >= min_lost)
+    rep.reasons.push_back({"low_texture",
+                           Fmt("only %.0f%% of the image has texture; flat areas give no points", 100 * texture),
+                           ft.lost});
+  if (fc.lost >= min_lost && trained)
+    rep.reasons.push_back({"concentrated",
+                           Fmt("the selected points cover %.0f%% of the image: features are concentrated in a small "
+                               "area, so the target is lost when that part is hidden or out of view",
+                               100 * coverage),
+                           fc.lost});
+  std::stable_sort(rep.reasons.begin(), rep.reasons.end(),
+                   [](const QualityReason& a, const QualityReason& b) { return a.lost > b.lost; });
+  rep.ms = timer.ElapsedMs();
+  return rep;
+}
+
+cv::Mat DrawQuality(const cv::Mat& image, const QualityReport& r) {
+  cv::Mat out;
+  if (image.channels() == 1) cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
+  else out = image.clone();
+  const double s = std::max(1.0, std::max(out.cols, out.rows) / 640.0);
+  const int arm = int(std::lround(4 * s)), th = std::max(1, int(std::lround(s)));
+  for (const auto& p : r.rejected) cv::circle(out, p, th, cv::Scalar(128, 128, 128), cv::FILLED, cv::LINE_AA);
+  for (const auto& p : r.selected) {
+    // White plus with a dark outline, visible on any background.
+    for (const auto& [c, t] : {std::pair{cv::Scalar(0, 0, 0), th + 2}, std::pair{cv::Scalar(255, 255, 255), th}}) {
+      cv::line(out, p - cv::Point2f(float(arm), 0), p + cv::Point2f(float(arm), 0), c, t, cv::LINE_AA);
+      cv::line(out, p - cv::Point2f(0, float(arm)), p + cv::Point2f(0, float(arm)), c, t, cv::LINE_AA);
+    }
+  }
+  const std::string label = "quality " + std::to_string(r.score) + "/100 (" + r.verdict + ")";
+  const double fs = 0.6 * s;
+  int base = 0;
+  const cv::Size ts = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, fs, th, &base);
+  cv::rectangle(out, cv::Rect(0, 0, ts.width + 12, ts.height + base + 12), cv::Scalar(0, 0, 0), cv::FILLED);
+  const cv::Scalar col = r.score >= 60 ? cv::Scalar(80, 220, 80) : r.score >= 40 ? cv::Scalar(60, 200, 240)
+                                                                                 : cv::Scalar(60, 60, 230);
+  cv::putText(out, label, cv::Point(6, ts.height + 6), cv::FONT_HERSHEY_SIMPLEX, fs, col, th, cv::LINE_AA);
+  return out;
+}
+
+}  // namespace mvkp

@@ -1,0 +1,136 @@
+#!/usr/bin/env bash
+# End-to-end tests of `mvkp quality` and of the RIFS training options
+# (`mvkp train --select/--alpha/--keep/--min-stability/--explain`): real scores
+# on real images, reasons for bad targets, clean failures on bad input.
+#
+# Run by CTest with MVKP=<mvkp binary> and SAMPLES=<repo>/samples. Needs no
+# network; Python side: standard library only. Output: one "ok: ..." /
+# "FAIL: ..." line per check, then "N passed, M failed".
+set -u
+
+: "${MVKP:?set MVKP to the mvkp binary}"
+: "${SAMPLES:?set SAMPLES to the samples directory}"
+PY=/usr/bin/python3
+T=$(mktemp -d "${TMPDIR:-/tmp}/mvkp_quality_test.XXXXXX") || exit 1
+trap 'rm -rf "$T"' EXIT
+start=$SECONDS
+passed=0
+failed=0
+known=0
+
+# shellcheck source=cli_lib.sh
+source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
+
+# expect_fail DESC WORD CMD...: exit exactly 1, one stderr line containing WORD.
+expect_fail() {
+  local desc=$1 word=$2; shift 2
+  run "$@"
+  local why lines
+  lines=$(grep -c '' "$T/err")
+  if why=$(process_problem); then
+    fail "$desc: $why"
+  elif ((RC != 1)); then
+    fail "$desc: exit $RC, want 1: $(first_err)"
+  elif ((lines != 1)); then
+    fail "$desc: expected one stderr line, got $lines: $(first_err)"
+  elif ! grep -qiF -- "$word" "$T/err"; then
+    fail "$desc: stderr lacks '$word': $(first_err)"
+  else
+    ok "$desc ($(cat "$T/err"))"
+  fi
+}
+
+# expect_reject DESC WORD CMD...: a bad option: non-zero exit, no crash, WORD on stderr.
+expect_reject() {
+  local desc=$1 word=$2; shift 2
+  run "$@"
+  local why
+  if why=$(process_problem); then
+    fail "$desc: $why"
+  elif ((RC == 0)); then
+    fail "$desc: accepted"
+  elif ! grep -qiF -- "$word" "$T/err"; then
+    fail "$desc: stderr lacks '$word': $(first_err)"
+  else
+    ok "$desc (exit $RC)"
+  fi
+}
+
+# json_check DESC PYTHON_EXPR: evaluates EXPR with j = the JSON lines of $T/out (list).
+json_check() {
+  local desc=$1 expr=$2
+  if $PY - "$T/out" "$expr" <<'PYEOF'; then ok "$desc"; else fail "$desc: $(head -c 300 "$T/out")"; fi
+import json, sys
+j = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+sys.exit(0 if eval(sys.argv[2]) else 1)
+PYEOF
+}
+
+# pgm NAME W H VALUE: a uniform 8-bit PGM.
+pgm() {
+  $PY - "$1" "$2" "$3" "$4" <<'PYEOF'
+import sys
+name, w, h, v = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+open(name, "wb").write(b"P5\n%d %d\n255\n" % (w, h) + bytes([v]) * (w * h))
+PYEOF
+}
+
+# --- mvkp quality: real outcomes ---------------------------------------------------
+expect_ok "quality of a painting (--json --draw)" \
+  "$MVKP" quality "$SAMPLES/starry_night.jpg" --json --draw "$T/q.png" --test-views 16
+json_check "painting: score >= 70, detection rate >= 0.75, factors add up" \
+  'len(j) == 1 and j[0]["score"] >= 70 and j[0]["expected_detection_rate"] >= 0.75 and abs(sum(f["points"] for f in j[0]["factors"].values()) - j[0]["score"]) <= 0.5 and len(j[0]["selected"]) == j[0]["selected_points"] > 0'
+check "--draw wrote a PNG" test -s "$T/q.png"
+check "--draw keeps the image size" $PY -c "
+import struct, sys
+d = open('$T/q.png', 'rb').read(24)
+sys.exit(0 if d[:8] == b'\x89PNG\r\n\x1a\n' and struct.unpack('>II', d[16:24]) == (400, 319) else 1)"
+
+pgm "$T/flat.pgm" 300 200 128
+expect_ok "quality of a uniform image exits 0" "$MVKP" quality "$T/flat.pgm" --json
+json_check "uniform image: score 0, reason 'uniform'" 'j[0]["score"] == 0 and j[0]["reasons"][0]["code"] == "uniform"'
+pgm "$T/tiny.pgm" 16 16 10
+expect_ok "quality of a 16x16 image exits 0" "$MVKP" quality "$T/tiny.pgm" --json
+json_check "tiny image: score 0, reason 'too_small'" 'j[0]["score"] == 0 and j[0]["reasons"][0]["code"] == "too_small"'
+expect_ok "quality, text output" "$MVKP" quality "$SAMPLES/coffee.jpg" --test-views 8
+check "text output names score and factors" grep -q "quality .*/100" "$T/out"
+
+# --- mvkp quality: bad input ---------------------------------------------------------
+printf 'not an image\n' >"$T/notimage.png"
+expect_fail "quality of a non-image file" "$T/notimage.png" "$MVKP" quality "$T/notimage.png"
+head -c 3000 "$SAMPLES/coffee.jpg" >"$T/trunc.jpg"
+expect_fail "quality of a truncated JPEG" "$T/trunc.jpg" "$MVKP" quality "$T/trunc.jpg"
+expect_fail "quality of a missing file" "$T/missing.png" "$MVKP" quality "$T/missing.png"
+run "$MVKP" quality "$SAMPLES/coffee.jpg" "$T/missing.png" --json --test-views 4
+if ((RC == 1)) && ! process_problem >/dev/null; then ok "good + missing image: exit 1"; else fail "good + missing image: exit $RC"; fi
+json_check "good + missing image: a score for the good one, an error object for the other" \
+  'len(j) == 2 and "score" in j[0] and "error" in j[1] and "missing.png" in j[1]["error"]'
+expect_reject "quality --test-views 0" "test views" "$MVKP" quality "$SAMPLES/coffee.jpg" --test-views 0
+
+# --- mvkp train: RIFS options ----------------------------------------------------------
+expect_ok "train --explain --select rifs --keep 30%" \
+  "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/c.mvkp" -q --explain --explain-rows 5 --select rifs --keep 30%
+check "--explain prints the view-track summary" grep -q "^view tracks: .* eligible .* kept" "$T/out"
+check "--explain prints the ranking rule" grep -q "ranking: rifs, alpha 0.50" "$T/out"
+check "--explain prints 5 ranked rows" test "$(grep -cE '^ +[0-9]+ +[0-9.]+ +[0-9.]+ +[0-9]+ ' "$T/out")" -eq 5
+check "--keep 30% keeps 30% of the eligible tracks" $PY -c "
+import re, sys
+m = re.search(r'(\d+) eligible .* (\d+) kept', open('$T/out').read())
+e, k = int(m.group(1)), int(m.group(2))
+sys.exit(0 if abs(k - 0.3 * e) <= 1 else 1)"
+expect_ok "train --select stability --keep 50" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/s.mvkp" -q --explain --select stability --keep 50
+check "stability: 0 rotation views, 50 kept" grep -q "100 general + 0 rotation), 50 kept" "$T/out"
+expect_ok "match with the RIFS model" "$MVKP" match "$T/c.mvkp" "$SAMPLES/coffee.jpg" --json
+json_check "RIFS model finds its own target" 'j[0]["found"] and j[0]["inliers"] >= 20'
+expect_reject "--keep abc" "--keep" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --keep abc
+expect_reject "--keep 0%" "--keep" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --keep 0%
+expect_reject "--keep 150%" "--keep" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --keep 150%
+expect_reject "--alpha 1.5" "--alpha" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --alpha 1.5
+expect_reject "--select best" "--select" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --select best
+expect_fail "--min-stability above the number of views" "min stability" \
+  "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --min-stability 100000
+check "no model left behind by rejected runs" test ! -e "$T/x.mvkp"
+
+echo "runtime: $((SECONDS - start)) s"
+echo "$passed passed, $failed failed"
+[[ $failed -eq 0 ]] || exit 1
