@@ -6,6 +6,9 @@ mvkp=${1:-build/mvkp}
 here=$(cd "$(dirname "$0")/.." && pwd)
 out=${DEMO_OUT:-$here/out/demo}
 mkdir -p "$out"
+echo "== 0. how good is it as a target? (score, reasons, expected detection rate)"
+"$mvkp" quality "$here/samples/starry_night.jpg" --draw "$out/quality.png"
+echo
 echo "== 1. train a target from one image (samples/starry_night.jpg)"
 "$mvkp" train "$here/samples/starry_night.jpg" -o "$out/starry_night.mvkp"
 echo
@@ -23,3 +26,4 @@ echo "== 5. speed against OpenCV SIFT and ORB on the same frames (single thread)
 "$mvkp" bench "$here/samples/starry_night.jpg" "$out"/frames/view_*.png --repeat 3 --train-repeat 1
 echo
 echo "drawings: $out/match-*.png   (green outline = found target, green dots = inliers)"
+echo "          $out/quality.png   (white plus signs = the view tracks a model keeps)"

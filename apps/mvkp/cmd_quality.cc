@@ -22,7 +22,8 @@ struct QualityArgs {
 nlohmann::json QualityJson(const std::string& image, const QualityReport& r) {
   nlohmann::json factors = nlohmann::json::object(), reasons = nlohmann::json::array();
   for (const auto& f : r.factors)
-    factors[f.name] = {{"value", f.value}, {"factor", f.factor}, {"weight", f.weight}, {"points", f.points}, {"lost", f.lost}};
+    factors[f.name] = {{"value", f.value},   {"factor", f.factor}, {"weight", f.weight},
+                       {"points", f.points}, {"max_points", 100 * f.weight}, {"lost", f.lost}};
   for (const auto& q : r.reasons) reasons.push_back({{"code", q.code}, {"message", q.message}, {"lost", q.lost}});
   nlohmann::json sel = nlohmann::json::array();
   for (const auto& p : r.selected) sel.push_back({p.x, p.y});
@@ -46,9 +47,12 @@ void PrintText(const std::string& image, const QualityReport& r) {
     std::printf("  expected detection rate %.0f%% (%d synthetic views, success = corner error < 5 px)\n",
                 100 * r.detection_rate, r.test_views);
   for (const auto& f : r.factors)
-    std::printf("  %-16s %5.1f / %4.1f points  (measured %.3g)\n", f.name.c_str(), f.points, f.points + f.lost, f.value);
+    std::printf("  %-16s %5.1f / %4.0f points  (measured %.3g)\n", f.name.c_str(), f.points, 100 * f.weight, f.value);
   if (r.reasons.empty()) std::printf("  no weaknesses found\n");
-  for (const auto& q : r.reasons) std::printf("  - %s (-%.0f): %s\n", q.code.c_str(), q.lost, q.message.c_str());
+  for (const auto& q : r.reasons) {
+    if (q.lost >= 0.5) std::printf("  - %s (-%.0f): %s\n", q.code.c_str(), q.lost, q.message.c_str());
+    else std::printf("  - %s: %s\n", q.code.c_str(), q.message.c_str());
+  }
   std::printf("  %.0f ms\n", r.ms);
 }
 

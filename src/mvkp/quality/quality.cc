@@ -126,6 +126,7 @@ void QualityOptions::Check() const {
   Require(target_size >= 64 && target_size <= 4096, ErrorCode::kInvalidArgument, "target size must be in 64..4096");
   Require(test_views >= 1 && test_views <= 10000, ErrorCode::kInvalidArgument, "test views must be in 1..10000");
   Require(success_px > 0, ErrorCode::kInvalidArgument, "success threshold must be > 0 px");
+  Require(half_rate > 0 && half_rate <= 1, ErrorCode::kInvalidArgument, "half rate must be in (0, 1]");
   Require(min_contrast >= 0 && min_contrast <= 255, ErrorCode::kInvalidArgument, "min contrast must be in 0..255");
   const double w = w_detection + w_stable + w_distinct + w_texture + w_coverage;
   Require(std::abs(w - 1.0) < 1e-6 && w_detection >= 0 && w_stable >= 0 && w_distinct >= 0 && w_texture >= 0 &&
@@ -218,54 +219,64 @@ QualityReport AssessTarget(const cv::Mat& input, const QualityOptions& o) {
     rep.median_error_px = errs[errs.size() / 2];
   }
 
-  auto factor = [&](const char* name, double value, double f, double w) {
+  // Structure only counts in full once the target is actually found: its
+  // points are scaled by min(1, soft rate / half_rate); what the scaling
+  // takes is charged to detection.
+  const double gate = std::min(1.0, soft / o.half_rate);
+  double gated = 0;
+  auto factor = [&](const char* name, double value, double f, double w, double g) {
     QualityFactor q{name, value, std::clamp(f, 0.0, 1.0), w, 0, 0};
-    q.points = 100 * w * q.factor;
-    q.lost = 100 * w * (1 - q.factor);
+    q.points = 100 * w * q.factor * g;
+    q.lost = 100 * w * (1 - q.factor);  // its own weakness, gated or not; points + lost + gated = 100 * w
+    gated += 100 * w * q.factor * (1 - g);
     rep.factors.push_back(q);
     return q;
   };
-  const auto fd = factor("detection", hard, soft, o.w_detection);
-  const auto fs = factor("stable_points", rep.eligible_tracks, double(rep.eligible_tracks) / o.good_stable_tracks, o.w_stable);
-  const auto fr = factor("distinctiveness", distinct, (distinct - o.repeated_distinct) / (o.good_distinct - o.repeated_distinct),
-                         o.w_distinct);
-  const auto ft = factor("texture", texture, texture / o.good_texture, o.w_texture);
-  const auto fc = factor("coverage", coverage, coverage / o.good_coverage, o.w_coverage);
+  factor("detection", hard, soft, o.w_detection, 1.0);
+  const auto fs =
+      factor("stable_points", rep.eligible_tracks, double(rep.eligible_tracks) / o.good_stable_tracks, o.w_stable, gate);
+  const auto fr = factor("distinctiveness", distinct,
+                         (distinct - o.repeated_distinct) / (o.good_distinct - o.repeated_distinct), o.w_distinct, gate);
+  const auto ft = factor("texture", texture, texture / o.good_texture, o.w_texture, gate);
+  const auto fc = factor("coverage", coverage, coverage / o.good_coverage, o.w_coverage, gate);
+  rep.factors[0].lost += gated;
+  const QualityFactor& fd = rep.factors[0];
   double total = 0;
   for (const auto& f : rep.factors) total += f.points;
   rep.score = std::clamp(int(std::lround(total)), 0, 100);
   rep.verdict = rep.score >= 80 ? "excellent" : rep.score >= 60 ? "good" : rep.score >= 40 ? "fair" : "poor";
 
-  const double min_lost = 1.0;  // points; smaller losses are not worth a reason
-  if (fd.lost >= min_lost && trained)
+  const double min_lost = 1.0;  // points; smaller weaknesses are not worth a reason
+  auto weak = [&](const QualityFactor& f) { return f.lost >= min_lost; };
+  if (weak(fd) && trained)
     rep.reasons.push_back({"low_detection",
                            Fmt("found within %.0f px in %.0f%% of synthetic test views (perspective, clutter, "
-                               "lighting, blur, noise)",
-                               o.success_px, 100 * hard),
+                               "lighting, blur, noise); below %.0f%% the other factors count only in part",
+                               o.success_px, 100 * hard, 100 * o.half_rate),
                            fd.lost});
   if (!trained)
     rep.reasons.push_back({"few_stable_points",
                            "too few stable interest points to train a target at all: the image needs texture "
                            "(corners, detail) over most of its area",
                            fs.lost});
-  else if (fs.lost >= min_lost)
+  else if (weak(fs))
     rep.reasons.push_back(
         {"few_stable_points",
          Fmt("only %.0f stable points (seen in enough training views; %.0f or more is good): add detail or "
              "use a more textured image",
              rep.eligible_tracks, o.good_stable_tracks),
          fs.lost});
-  if (fr.lost >= min_lost && trained)
+  if (weak(fr) && trained)
     rep.reasons.push_back({"repeated_elements",
                            Fmt("points look alike: %.0f%% of the selected points have a near twin elsewhere in "
                                "the image (repeated elements such as tiles, brick, windows or text)",
                                100 * lookalike_share),
                            fr.lost});
-  if (ft.lost >= min_lost)
+  if (weak(ft))
     rep.reasons.push_back({"low_texture",
                            Fmt("only %.0f%% of the image has texture; flat areas give no points", 100 * texture),
                            ft.lost});
-  if (fc.lost >= min_lost && trained)
+  if (weak(fc) && trained)
     rep.reasons.push_back({"concentrated",
                            Fmt("the selected points cover %.0f%% of the image: features are concentrated in a small "
                                "area, so the target is lost when that part is hidden or out of view",

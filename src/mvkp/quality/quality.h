@@ -5,8 +5,9 @@
 // contrast-normalised, resized to the synth target size, trained with RIFS,
 // then matched against synthetic test views (perspective, clutter, lighting,
 // blur, noise) with known homographies. The score combines the measured
-// detection rate with four structural factors, each reported with the points
-// it costs, so the number explains itself:
+// detection rate (60 points) with four structural factors (10 points each,
+// counted in full once the target is found in half the views), each reported
+// with the points it costs, so the number explains itself:
 //   stable points   eligible RIFS view tracks (too few: fragile target)
 //   distinctiveness how far each selected point's nearest look-alike is,
 //                   relative to DS (repeated elements: tiles, brick, text)
@@ -28,12 +29,16 @@ namespace mvkp {
 
 struct QualityOptions {
   int target_size = 320;     // assessed at this longest side (`mvkp synth --target-size` default)
-  int test_views = 40;       // synthetic views for the detection rate
+  int test_views = 120;      // synthetic views for the detection rate (SE of the rate <= 0.046)
   std::uint64_t seed = 7;    // test views (training uses train.seed)
   double success_px = 5.0;   // a view counts as detected when the mean corner error is below this
   double min_contrast = 24;  // grey levels between the 0.5th and 99.5th percentile; below: uniform (score 0)
   // Weights of the score (sum 1): detection rate and the four factors.
   double w_detection = 0.6, w_stable = 0.1, w_distinct = 0.1, w_texture = 0.1, w_coverage = 0.1;
+  // The four structural factors count in full once the (soft) detection rate
+  // reaches half_rate, and proportionally less below: a target that is never
+  // found scores near 0 however textured it looks.
+  double half_rate = 0.3;
   // Where each factor reaches 1 (and below which it is reported as a reason).
   int good_stable_tracks = 300;
   double good_texture = 0.5;
@@ -52,8 +57,9 @@ struct QualityFactor {
   double value = 0;     // raw measurement (rate, count or share)
   double factor = 0;    // normalised to [0, 1]
   double weight = 0;
-  double points = 0;    // contribution to the score: 100 * weight * factor
-  double lost = 0;      // 100 * weight * (1 - factor)
+  double points = 0;    // contribution to the score: 100 * weight * factor (* detection gate)
+  double lost = 0;      // points its weakness costs; detection also carries what the gate takes from
+                        // the others, so score + sum of lost = 100
 };
 
 struct QualityReason {

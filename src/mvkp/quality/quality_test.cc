@@ -40,10 +40,14 @@ TEST(Quality, TexturedPaintingScoresHighAndIsDetected) {
   EXPECT_GE(r.detection_rate, 0.75);
   EXPECT_GT(r.eligible_tracks, 200);
   EXPECT_EQ(int(r.selected.size()), r.selected_tracks);
-  // The factor points add up to the score.
-  double total = 0;
-  for (const auto& f : r.factors) total += f.points;
+  // The factor points add up to the score, and points + lost to 100.
+  double total = 0, lost = 0;
+  for (const auto& f : r.factors) {
+    total += f.points;
+    lost += f.lost;
+  }
   EXPECT_NEAR(total, r.score, 0.5 + 1e-9);
+  EXPECT_NEAR(total + lost, 100.0, 1e-6);
   EXPECT_FALSE(HasReason(r, "uniform"));
 }
 
@@ -59,6 +63,12 @@ TEST(Quality, TiledPatternIsReportedAsRepeated) {
   EXPECT_LT(Factor(tiles, "distinctiveness"), 0.5);
   EXPECT_GT(Factor(painting, "distinctiveness"), 0.9);
   EXPECT_LT(tiles.score, painting.score - 20);
+  double total = 0, lost = 0;
+  for (const auto& f : tiles.factors) {
+    total += f.points;
+    lost += f.lost;
+  }
+  EXPECT_NEAR(total + lost, 100.0, 1e-6);
 }
 
 TEST(Quality, SmallLogoOnPlainCanvasIsConcentrated) {
