@@ -1,6 +1,8 @@
 #include "baselines.h"
 
+#include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <opencv2/calib3d.hpp>
 
@@ -52,6 +54,34 @@ cv::Matx33d ReadHomography(const std::string& path) {
   for (int i = 0; i < 9; ++i)
     if (!(in >> H.val[i])) throw Error(ErrorCode::kInvalidArgument, path + ": expected 9 numbers (a 3x3 homography)");
   return H;
+}
+
+std::vector<ManifestPair> ReadManifest(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::ifstream in(path);
+  if (!in) throw Error(ErrorCode::kIo, path + ": cannot open manifest");
+  const fs::path base = fs::path(path).parent_path();
+  std::vector<ManifestPair> out;
+  std::string line;
+  int no = 0;
+  while (std::getline(in, line)) {
+    ++no;
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream ss(line);
+    ManifestPair p;
+    if (!(ss >> p.img1 >> p.img2 >> p.h))
+      throw Error(ErrorCode::kInvalidArgument, path + ":" + std::to_string(no) + ": expected 'img1 img2 H'");
+    auto rel = [&](std::string& s) {
+      if (s != "none" && fs::path(s).is_relative()) s = (base / s).string();
+    };
+    rel(p.img1);
+    rel(p.img2);
+    rel(p.h);
+    p.set = base.filename().string();
+    out.push_back(p);
+  }
+  return out;
 }
 
 }  // namespace mvkp::cli

@@ -38,4 +38,12 @@ class Baseline {
 // Reads a homography text file: 9 numbers, row-major (Oxford / HPatches style).
 cv::Matx33d ReadHomography(const std::string& path);
 
+// One line of a pair manifest (`img1 img2 H`, as `mvkp synth` writes and
+// eval_pairs.py reads); relative paths are resolved against the manifest's
+// folder, whose name becomes `set`. H may be "none".
+struct ManifestPair {
+  std::string img1, img2, h, set;
+};
+std::vector<ManifestPair> ReadManifest(const std::string& path);
+
 }  // namespace mvkp::cli

@@ -4,9 +4,14 @@
 #include <iostream>
 #include <memory>
 
+#include <opencv2/core.hpp>
+
 #include "commands.h"
+#include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
+#include "mvkp/local/local_features.h"
+#include "mvkp/local/pair_match.h"
 #include "mvkp/match/matcher.h"
 #include "mvkp/model/model.h"
 #include "mvkp/train/trainer.h"
@@ -34,6 +39,8 @@ struct MatchArgs {
 
 struct PairArgs {
   std::string image1, image2;
+  std::string method = "mvkp";
+  CLI::Option* ratio_option = nullptr;  // to tell whether --ratio was given
   bool json = false;
   std::string draw;
   bool affine = false;
@@ -124,7 +131,64 @@ int RunMatch(MatchArgs& a) {
   return failures ? 1 : 0;
 }
 
+// pair --method cdikp|sift|orb|akaze|aug-sift|aug-cdikp: extract both images,
+// ratio test (0.8 unless --ratio), RANSAC homography; the same JSON as mvkp.
+int RunLocalPair(PairArgs& a) {
+  Timer total;
+  LocalFeatureOptions lo;
+  const auto method = LocalFeatureMethod::Create(a.method, lo);
+  const cv::Mat img1 = LoadImageGray(a.image1);
+  const cv::Mat img2 = LoadImageGray(a.image2);
+  const LocalFeatures f1 = method->Extract(img1);
+  if (f1.keypoints.empty()) throw Error(ErrorCode::kNoTexture, a.image1 + ": no keypoints found by " + a.method);
+  const LocalFeatures f2 = method->Extract(img2);
+  if (f2.keypoints.empty()) throw Error(ErrorCode::kNoTexture, a.image2 + ": no keypoints found by " + a.method);
+  Timer mt;
+  const auto nearest = method->Match(f1, f2);
+  const double match_ms = mt.ElapsedMs();
+  PairMatchOptions po;
+  po.ratio = a.ratio_option && a.ratio_option->count() > 0 ? a.match.ratio : 0.8;
+  const PairMatchResult r = MatchPair(f1, f2, nearest, po);
+  const double query_ms = f2.detect_ms + f2.describe_ms + f2.augment_ms + match_ms + r.verify_ms;
+  const double total_ms = total.ElapsedMs();
+  if (a.json) {
+    nlohmann::json matches = nlohmann::json::array();
+    for (const auto& m : r.matches) matches.push_back({m.object.x, m.object.y, m.query.x, m.query.y, m.distance, m.inlier ? 1 : 0});
+    nlohmann::json H = nullptr;
+    if (r.found) {
+      H = nlohmann::json::array();
+      for (int i = 0; i < 3; ++i) H.push_back({r.homography(i, 0), r.homography(i, 1), r.homography(i, 2)});
+    }
+    const nlohmann::json t = {{"detect", f2.detect_ms}, {"describe", f2.describe_ms}, {"augment", f2.augment_ms},
+                              {"search", match_ms},     {"verify", r.verify_ms},     {"query", query_ms},
+                              {"total", total_ms}};
+    const nlohmann::json out = {{"method", a.method}, {"keypoints1", f1.keypoints.size()}, {"keypoints2", f2.keypoints.size()},
+                                {"time_ms", t},       {"homography", H},                 {"matches", matches}};
+    std::cout << out.dump() << std::endl;
+  } else {
+    std::printf("%s -> %s (%s): %s, %d inliers of %zu matches, %zu / %zu keypoints; query %.1f ms, total %.0f ms\n",
+                a.image1.c_str(), a.image2.c_str(), a.method.c_str(), r.found ? "found" : "not found", r.inliers,
+                r.matches.size(), f1.keypoints.size(), f2.keypoints.size(), query_ms, total_ms);
+  }
+  if (!a.draw.empty()) {
+    MatchResult m;
+    m.found = r.found;
+    m.homography = r.homography;
+    m.inliers = r.inliers;
+    for (const auto& c : r.matches) m.matches.push_back({c.object, c.query, c.distance, -1, c.inlier});
+    if (r.found) {
+      std::vector<cv::Point2f> corners = {{0, 0}, {float(img1.cols - 1), 0}, {float(img1.cols - 1), float(img1.rows - 1)},
+                                          {0, float(img1.rows - 1)}}, out;
+      cv::perspectiveTransform(corners, out, cv::Mat(r.homography));
+      for (int i = 0; i < 4; ++i) m.outline[i] = out[i];
+    }
+    SaveImage(a.draw, DrawPair(LoadImageColor(a.image1), LoadImageColor(a.image2), m));
+  }
+  return 0;
+}
+
 int RunPair(PairArgs& a) {
+  if (a.method != "mvkp") return RunLocalPair(a);
   Timer total;
   const cv::Mat img1 = LoadImageGray(a.image1);
   const cv::Mat img2 = LoadImageGray(a.image2);
@@ -183,8 +247,16 @@ void RegisterPair(CLI::App& app, int* code) {
   c->add_option("IMG2", a->image2, "query image")->required();
   c->add_flag("--json", a->json, "print the correspondence JSON");
   c->add_option("--draw", a->draw, "write a side-by-side drawing here");
+  std::vector<std::string> methods = {"mvkp"};
+  for (const auto& m : LocalFeatureMethodNames()) methods.push_back(m);
+  c->add_option("--method", a->method,
+                "mvkp (train on IMG1, default) | cdikp | sift | orb | akaze | aug-sift | aug-cdikp "
+                "(extract both, ratio test 0.8 unless --ratio, RANSAC)")
+      ->check(CLI::IsMember(methods))
+      ->capture_default_str();
   AddTrainOptions(c, &a->train);
   AddMatchOptions(c, &a->match, &a->affine);
+  a->ratio_option = c->get_option("--ratio");
   c->callback([a, code] { *code = RunPair(*a); });
 }
 

@@ -37,43 +37,12 @@ struct EvalArgs {
   MatchOptions match;
 };
 
-struct Pair {
-  std::string img1, img2, h, set;
-};
-
 struct Row {
   std::string method, set, pair;
   double corner_err = INFINITY;
   int matches = 0, inliers = 0, correct = 0;
   double ms = 0;
 };
-
-std::vector<Pair> ReadManifest(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(ErrorCode::kIo, path + ": cannot open manifest");
-  const fs::path base = fs::path(path).parent_path();
-  std::vector<Pair> out;
-  std::string line;
-  int no = 0;
-  while (std::getline(in, line)) {
-    ++no;
-    const auto first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream ss(line);
-    Pair p;
-    if (!(ss >> p.img1 >> p.img2 >> p.h))
-      throw Error(ErrorCode::kInvalidArgument, path + ":" + std::to_string(no) + ": expected 'img1 img2 H'");
-    auto rel = [&](std::string& s) {
-      if (s != "none" && fs::path(s).is_relative()) s = (base / s).string();
-    };
-    rel(p.img1);
-    rel(p.img2);
-    rel(p.h);
-    p.set = base.filename().string();
-    out.push_back(p);
-  }
-  return out;
-}
 
 int Correct(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b, const cv::Matx33d& H) {
   if (a.empty()) return 0;
@@ -86,9 +55,9 @@ int Correct(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b
 
 int RunEval(EvalArgs& a) {
   if (a.affine) a.match.geometry = GeometryModel::kAffine;
-  std::vector<Pair> pairs;
+  std::vector<ManifestPair> pairs;
   for (const auto& m : a.manifests) {
-    auto p = ReadManifest(m);
+    auto p = ReadManifest(m);  // baselines.h
     pairs.insert(pairs.end(), p.begin(), p.end());
   }
   std::vector<Row> rows;
@@ -185,13 +154,19 @@ int RunEval(EvalArgs& a) {
 void RegisterEval(CLI::App& app, int* code) {
   auto a = std::make_shared<EvalArgs>();
   auto* c = app.add_subcommand("eval", "Score MVKP (and OpenCV baselines) on manifests of 'img1 img2 H' pairs");
-  c->add_option("MANIFEST", a->manifests, "manifest files (e.g. from 'mvkp synth')")->required();
+  c->add_option("MANIFEST", a->manifests, "manifest files (e.g. from 'mvkp synth')");
   c->add_option("--baselines", a->baselines, "OpenCV pipelines run in the same pass: sift orb akaze brisk")->delimiter(',');
   c->add_option("--json", a->json_out, "write per-pair rows and the summary here");
   c->add_flag("--per-pair", a->per_pair, "print every pair");
   AddTrainOptions(c, &a->train);
   AddMatchOptions(c, &a->match, &a->affine);
-  c->callback([a, code] { *code = RunEval(*a); });
+  RegisterEvalOxford(c, code);
+  c->require_subcommand(0, 1);
+  c->callback([a, c, code] {
+    if (c->got_subcommand("oxford")) return;  // its own callback ran
+    if (a->manifests.empty()) throw CLI::RequiredError("MANIFEST");
+    *code = RunEval(*a);
+  });
 }
 
 }  // namespace mvkp::cli

@@ -13,6 +13,7 @@ void RegisterPair(CLI::App& app, int* exit_code);
 void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
 void RegisterEval(CLI::App& app, int* exit_code);
+void RegisterEvalOxford(CLI::App* eval, int* exit_code);  // `eval oxford`, a subcommand of eval
 void RegisterKnn(CLI::App& app, int* exit_code);
 void RegisterQuality(CLI::App& app, int* exit_code);
 
