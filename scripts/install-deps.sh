@@ -10,6 +10,7 @@ pkgs=(
   libcli11-dev             # command line
   nlohmann-json3-dev       # JSON output
   libfaiss-dev libhnswlib-dev  # nearest-neighbour baselines of bench/mvkp_bench_knn (optional there)
+  libsqlite3-dev           # target database (src/mvkp/db)
   python3 python3-numpy python3-opencv  # evaluation scripts (eval_pairs.py, contract-check)
 )
 missing=()

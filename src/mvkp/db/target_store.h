@@ -1,0 +1,88 @@
+// Target database storage (issue 6, thesis §6.3.2): one SQLite file holds the
+// targets, their metadata and their trained models.
+//
+// Schema (version kTargetStoreSchemaVersion, in PRAGMA user_version):
+//   targets(id TEXT PRIMARY KEY, title TEXT, artist TEXT, year TEXT, url TEXT,
+//           meta TEXT (free-form JSON, '{}' by default), width INTEGER,
+//           height INTEGER, image BLOB (the encoded target image, may be
+//           empty), model BLOB (SerializeModel bytes), added_at TEXT (UTC ISO 8601))
+// Opening an older schema migrates it in one transaction; a newer one is
+// refused. The file uses WAL journaling, so many readers (other processes
+// included) can read while one writer adds or removes targets; every add or
+// remove is one transaction, so a crash leaves either the old or the new
+// state, never a half-written target.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace mvkp {
+
+constexpr int kTargetStoreSchemaVersion = 1;
+
+struct TargetInfo {
+  std::string id;      // non-empty, at most 256 bytes, no control characters
+  std::string title, artist, year, url;
+  std::string meta = "{}";  // a JSON object (validated)
+  int width = 0, height = 0;  // of the target image
+  std::string added_at;       // set by the store
+};
+
+struct TargetRecord {
+  TargetInfo info;
+  std::vector<std::uint8_t> image;  // encoded image bytes (JPEG/PNG), may be empty
+  std::vector<std::uint8_t> model;  // SerializeModel bytes
+};
+
+// One TargetStore (one SQLite connection) is for one thread at a time;
+// separate TargetStore objects, in threads or processes, may read
+// concurrently while at most one writes (a second writer waits up to 5 s).
+class TargetStore {
+ public:
+  enum class Mode { kReadOnly, kReadWrite };
+  // Creates a new, empty database file. Throws Error(kIo) if the path exists
+  // or cannot be created.
+  static TargetStore Create(const std::string& path);
+  // Opens an existing database. Throws Error(kIo) if missing/unreadable,
+  // Error(kBadModel) ("not an mvkp target database", "schema version N is
+  // newer than this build's M") if it is not one we can read.
+  static TargetStore Open(const std::string& path, Mode mode = Mode::kReadOnly);
+
+  TargetStore(TargetStore&&) noexcept;
+  TargetStore& operator=(TargetStore&&) noexcept;
+  TargetStore(const TargetStore&) = delete;
+  TargetStore& operator=(const TargetStore&) = delete;
+  ~TargetStore();
+
+  const std::string& path() const;
+  int schema_version() const;
+
+  // One transaction. Throws Error(kInvalidArgument) for a duplicate id
+  // ("target 'X' already exists"), a bad id or invalid meta JSON; nothing is
+  // written then.
+  void Add(const TargetRecord& record);
+  // Adds all or none (one transaction), e.g. for a bulk import.
+  void AddAll(const std::vector<TargetRecord>& records);
+  // One transaction. Returns false if there was no such id.
+  bool Remove(const std::string& id);
+  // Replaces the metadata (not the model); false if there is no such id.
+  bool UpdateInfo(const TargetInfo& info);
+
+  bool Contains(const std::string& id) const;
+  std::size_t Count() const;
+  // Metadata of every target, ordered by id.
+  std::vector<TargetInfo> List() const;
+  // Throws Error(kInvalidArgument) "no target 'X'" if absent.
+  TargetRecord Get(const std::string& id, bool with_image = true) const;
+  // Every target with its model (not the image), ordered by id: what a
+  // recogniser loads.
+  std::vector<TargetRecord> LoadAll() const;
+
+ private:
+  struct Impl;
+  explicit TargetStore(Impl* impl);
+  Impl* impl_ = nullptr;
+};
+
+}  // namespace mvkp
