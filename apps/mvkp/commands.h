@@ -16,5 +16,6 @@ void RegisterEval(CLI::App& app, int* exit_code);
 void RegisterEvalOxford(CLI::App* eval, int* exit_code);  // `eval oxford`, a subcommand of eval
 void RegisterKnn(CLI::App& app, int* exit_code);
 void RegisterQuality(CLI::App& app, int* exit_code);
+void RegisterDb(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli
