@@ -65,8 +65,6 @@ Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_pt
                 model_.labels.data());
 }
 
-namespace {
-
 FeatureOptions QueryFeatureOptions(const ModelParams& p, int max_points) {
   FeatureOptions fo;
   fo.smooth_sigma = p.smooth_sigma;
@@ -81,8 +79,6 @@ FeatureOptions QueryFeatureOptions(const ModelParams& p, int max_points) {
   fo.describer.orientation_radius = p.orientation_radius;
   return fo;
 }
-
-}  // namespace
 
 // Nearest centre and nearest centre of another location for each descriptor,
 // then the ratio test (on L2 distances; the index returns squared ones).
@@ -127,6 +123,34 @@ int CvMethod(RobustMethod m) {
   return cv::USAC_ACCURATE;
 }
 
+GeometryFit FitGeometry(const std::vector<cv::Point2f>& src, const std::vector<cv::Point2f>& dst, const MatchOptions& o) {
+  GeometryFit g;
+  cv::Mat H;
+  if (o.geometry == GeometryModel::kHomography) {
+    H = cv::findHomography(src, dst, CvMethod(o.robust), o.ransac_threshold, g.mask, o.ransac_iterations,
+                           o.ransac_confidence);
+  } else {
+    cv::Mat A = cv::estimateAffine2D(src, dst, g.mask, CvMethod(o.robust), o.ransac_threshold,
+                                     std::size_t(o.ransac_iterations), o.ransac_confidence, 10);
+    if (!A.empty()) {
+      H = cv::Mat::eye(3, 3, CV_64F);
+      A.copyTo(H.rowRange(0, 2));
+    }
+  }
+  if (H.empty()) return g;
+  g.ok = true;
+  g.homography = cv::Matx33d(H.ptr<double>());
+  for (std::size_t i = 0; i < g.mask.size() && i < src.size(); ++i) g.inliers += g.mask[i] != 0;
+  return g;
+}
+
+std::array<cv::Point2f, 4> ProjectOutline(const cv::Matx33d& H, int width, int height) {
+  const float w = float(width - 1), h = float(height - 1);
+  std::vector<cv::Point2f> corners = {{0, 0}, {w, 0}, {w, h}, {0, h}}, out;
+  cv::perspectiveTransform(corners, out, cv::Mat(H));
+  return {out[0], out[1], out[2], out[3]};
+}
+
 void Matcher::Verify(MatchResult& r) const {
   Timer t;
   r.found = false;
@@ -141,33 +165,15 @@ void Matcher::Verify(MatchResult& r) const {
       src.push_back(m.object);
       dst.push_back(m.query);
     }
-    std::vector<std::uint8_t> mask;
-    cv::Mat H;
-    if (options_.geometry == GeometryModel::kHomography) {
-      H = cv::findHomography(src, dst, CvMethod(options_.robust), options_.ransac_threshold, mask, options_.ransac_iterations,
-                             options_.ransac_confidence);
-    } else {
-      cv::Mat A = cv::estimateAffine2D(src, dst, mask, CvMethod(options_.robust), options_.ransac_threshold,
-                                       std::size_t(options_.ransac_iterations), options_.ransac_confidence, 10);
-      if (!A.empty()) {
-        H = cv::Mat::eye(3, 3, CV_64F);
-        A.copyTo(H.rowRange(0, 2));
-      }
-    }
-    if (!H.empty()) {
-      int inl = 0;
-      for (std::size_t i = 0; i < mask.size() && i < r.matches.size(); ++i) inl += mask[i] != 0;
-      cv::Matx33d Hm(H.ptr<double>());
-      const float w = float(model_.object_width - 1), h = float(model_.object_height - 1);
-      std::vector<cv::Point2f> corners = {{0, 0}, {w, 0}, {w, h}, {0, h}}, out;
-      cv::perspectiveTransform(corners, out, cv::Mat(Hm));
-      std::array<cv::Point2f, 4> quad{out[0], out[1], out[2], out[3]};
-      if (inl >= options_.min_inliers && IsPlausibleOutline(quad)) {
+    const GeometryFit g = FitGeometry(src, dst, options_);
+    if (g.ok) {
+      const std::array<cv::Point2f, 4> quad = ProjectOutline(g.homography, model_.object_width, model_.object_height);
+      if (g.inliers >= options_.min_inliers && IsPlausibleOutline(quad)) {
         r.found = true;
-        r.homography = Hm;
+        r.homography = g.homography;
         r.outline = quad;
-        r.inliers = inl;
-        for (std::size_t i = 0; i < mask.size() && i < r.matches.size(); ++i) r.matches[i].inlier = mask[i] != 0;
+        r.inliers = g.inliers;
+        for (std::size_t i = 0; i < g.mask.size() && i < r.matches.size(); ++i) r.matches[i].inlier = g.mask[i] != 0;
       }
     }
   }

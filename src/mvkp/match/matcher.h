@@ -13,12 +13,12 @@
 
 #include <opencv2/core.hpp>
 
+#include "mvkp/describe/features.h"
 #include "mvkp/index/knn_index.h"
 #include "mvkp/model/model.h"
 
 namespace mvkp {
 
-struct Features;
 
 enum class GeometryModel { kHomography, kAffine };
 
@@ -90,6 +90,25 @@ class Matcher {
   MatchOptions options_;
   std::unique_ptr<KnnIndex> index_;
 };
+
+// Robust fit of object -> query point pairs with the estimator, geometry and
+// thresholds of `options` (USAC / RANSAC homography, or affine). Empty
+// `homography` when no model was found; `mask` marks the inliers.
+struct GeometryFit {
+  bool ok = false;
+  cv::Matx33d homography = cv::Matx33d::eye();
+  std::vector<std::uint8_t> mask;
+  int inliers = 0;
+};
+GeometryFit FitGeometry(const std::vector<cv::Point2f>& object, const std::vector<cv::Point2f>& query,
+                        const MatchOptions& options);
+
+// Where H puts the object's corners (0,0), (w-1,0), (w-1,h-1), (0,h-1).
+std::array<cv::Point2f, 4> ProjectOutline(const cv::Matx33d& H, int width, int height);
+
+// The feature settings a query frame must be processed with for a model
+// trained with `params`, keeping the `max_points` strongest points.
+FeatureOptions QueryFeatureOptions(const ModelParams& params, int max_points);
 
 // Mean distance (pixels) between where two homographies put the four corners
 // (0,0), (w-1,0), (w-1,h-1), (0,h-1) of an image of `size`: the HPatches-style
