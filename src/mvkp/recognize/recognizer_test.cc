@@ -1,0 +1,161 @@
+#include "mvkp/recognize/recognizer.h"
+
+#include <map>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/synth/synth.h"
+#include "mvkp/train/trainer.h"
+
+namespace mvkp {
+namespace {
+
+cv::Mat Sample(const std::string& name) {
+  cv::Mat m = cv::imread(std::string(MVKP_SOURCE_DIR) + "/samples/" + name, cv::IMREAD_GRAYSCALE);
+  EXPECT_FALSE(m.empty()) << name;
+  return m;
+}
+
+// Four targets trained once (default training options) for the whole suite;
+// fruits.jpg and baboon.jpg are not among them.
+class RecognizerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    for (const char* name : {"starry_night", "astronaut", "building", "coffee"}) {
+      (*images_)[name] = PrepareTarget(Sample(std::string(name) + ".jpg"), 320);
+      (*models_)[name] = Train((*images_)[name], {});
+    }
+  }
+  static Recognizer MakeRecognizer(const RecognizerOptions& o = {}) {
+    Recognizer rec(o);
+    for (const auto& [id, m] : *models_) rec.Add(id, m);
+    return rec;
+  }
+  static const Recognition* Find(const RecognitionResult& r, const std::string& id) {
+    for (const auto& f : r.found)
+      if (f.id == id) return &f;
+    return nullptr;
+  }
+  static inline auto* images_ = new std::map<std::string, cv::Mat>;
+  static inline auto* models_ = new std::map<std::string, Model>;
+};
+
+TEST_F(RecognizerTest, RecognisesEachTargetInSyntheticScenes) {
+  const Recognizer rec = MakeRecognizer();
+  ASSERT_EQ(rec.size(), 4u);
+  for (const auto& [id, img] : *images_) {
+    int ok = 0, wrong = 0;
+    const int n = 10;
+    for (int i = 0; i < n; ++i) {
+      const SceneView v = MakeSceneView(img, SceneOptions{}, 2000 + i);
+      const RecognitionResult r = rec.Recognize(v.image);
+      const Recognition* f = Find(r, id);
+      if (!r.found.empty() && r.found[0].id == id && f && MeanCornerError(f->homography, v.H, img.size()) < 5.0) ++ok;
+      for (const auto& x : r.found) wrong += x.id != id;
+    }
+    EXPECT_GE(ok, 8) << id;
+    EXPECT_EQ(wrong, 0) << id;
+  }
+}
+
+TEST_F(RecognizerTest, FindsTwoTargetsInOneFrame) {
+  const Recognizer rec = MakeRecognizer();
+  cv::Mat canvas(480, 960, CV_8UC1);
+  cv::randn(canvas, 128, 10);
+  const cv::Mat& a = images_->at("starry_night");
+  const cv::Mat& b = images_->at("astronaut");
+  const cv::Matx33d Ha(0.9, 0, 40, 0, 0.9, 60, 0, 0, 1);
+  const cv::Matx33d Hb(1.1, 0, 520, 0, 1.1, 50, 0, 0, 1);
+  cv::warpPerspective(a, canvas, cv::Mat(Ha), canvas.size(), cv::INTER_LINEAR, cv::BORDER_TRANSPARENT);
+  cv::warpPerspective(b, canvas, cv::Mat(Hb), canvas.size(), cv::INTER_LINEAR, cv::BORDER_TRANSPARENT);
+  const RecognitionResult r = rec.Recognize(canvas);
+  ASSERT_EQ(r.found.size(), 2u) << "candidates " << r.candidates << ", matches " << r.matches;
+  const Recognition* fa = Find(r, "starry_night");
+  const Recognition* fb = Find(r, "astronaut");
+  ASSERT_TRUE(fa && fb);
+  EXPECT_LT(MeanCornerError(fa->homography, Ha, a.size()), 5.0);
+  EXPECT_LT(MeanCornerError(fb->homography, Hb, b.size()), 5.0);
+  EXPECT_GE(fa->inliers, 12);
+  EXPECT_GE(fb->inliers, 12);
+  EXPECT_GE(r.found[0].inliers, r.found[1].inliers);
+  for (const auto& f : r.found) EXPECT_TRUE(f.score > 0 && f.score <= 1);
+}
+
+TEST_F(RecognizerTest, FindsNothingInANonTarget) {
+  const Recognizer rec = MakeRecognizer();
+  for (const char* other : {"fruits.jpg", "baboon.jpg"}) {
+    const RecognitionResult plain = rec.Recognize(Sample(other));
+    EXPECT_TRUE(plain.found.empty()) << other << ": " << plain.found[0].id << " " << plain.found[0].inliers;
+    const cv::Mat target = PrepareTarget(Sample(other), 320);
+    for (int i = 0; i < 3; ++i) {
+      const RecognitionResult r = rec.Recognize(MakeSceneView(target, SceneOptions{}, 3000 + i).image);
+      EXPECT_TRUE(r.found.empty()) << other << " view " << i << ": " << r.found[0].id << " " << r.found[0].inliers;
+    }
+  }
+}
+
+TEST_F(RecognizerTest, RemovedTargetIsNotFound) {
+  Recognizer rec = MakeRecognizer();
+  const cv::Mat& img = images_->at("building");
+  const SceneView v = MakeSceneView(img, SceneOptions{}, 4000);
+  ASSERT_TRUE(Find(rec.Recognize(v.image), "building"));
+  EXPECT_TRUE(rec.Remove("building"));
+  EXPECT_FALSE(rec.Remove("building"));
+  EXPECT_EQ(rec.size(), 3u);
+  const RecognitionResult r = rec.Recognize(v.image);
+  EXPECT_TRUE(r.found.empty()) << r.found[0].id;
+  // Re-adding works, and the others are still found.
+  rec.Add("building", models_->at("building"));
+  EXPECT_TRUE(Find(rec.Recognize(v.image), "building"));
+  const SceneView c = MakeSceneView(images_->at("coffee"), SceneOptions{}, 4001);
+  EXPECT_TRUE(Find(rec.Recognize(c.image), "coffee"));
+}
+
+TEST_F(RecognizerTest, IsDeterministic) {
+  const Recognizer rec = MakeRecognizer();
+  const SceneView v = MakeSceneView(images_->at("coffee"), SceneOptions{}, 5000);
+  const RecognitionResult a = rec.Recognize(v.image), b = rec.Recognize(v.image);
+  ASSERT_EQ(a.found.size(), b.found.size());
+  ASSERT_FALSE(a.found.empty());
+  EXPECT_EQ(a.found[0].inliers, b.found[0].inliers);
+  EXPECT_EQ(cv::norm(cv::Mat(a.found[0].homography), cv::Mat(b.found[0].homography), cv::NORM_INF), 0.0);
+}
+
+TEST_F(RecognizerTest, RejectsDuplicatesAndMismatchedFeatures) {
+  Recognizer rec = MakeRecognizer();
+  EXPECT_THROW(rec.Add("coffee", models_->at("starry_night")), Error);
+  EXPECT_THROW(rec.Add("", models_->at("starry_night")), Error);
+  Model m = models_->at("coffee");
+  m.params.smooth_sigma = 1.5f;
+  EXPECT_THROW(rec.Add("coffee-sigma", m), Error);
+  m = models_->at("coffee");
+  m.params.orientation_radius = 11;
+  EXPECT_THROW(rec.Add("coffee-radius", m), Error);
+  m = models_->at("coffee");
+  m.params.min_strength *= 2;
+  EXPECT_THROW(rec.Add("coffee-threshold", m), Error);
+  EXPECT_EQ(rec.size(), 4u);
+  // The training record may differ.
+  m = models_->at("coffee");
+  m.params.views = 7;
+  EXPECT_NO_THROW(rec.Add("coffee2", m));
+  EXPECT_GT(rec.memory_bytes(), 0u);
+}
+
+TEST(Recognizer, EmptyAndBadInput) {
+  const Recognizer rec;
+  EXPECT_TRUE(rec.Recognize(cv::Mat(100, 100, CV_8UC1, cv::Scalar(0))).found.empty());
+  EXPECT_THROW(rec.Recognize(cv::Mat(100, 100, CV_8UC3)), Error);
+  RecognizerOptions o;
+  o.min_inliers = 2;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.max_candidates = 0;
+  EXPECT_THROW(Recognizer{o}, Error);
+}
+
+}  // namespace
+}  // namespace mvkp
