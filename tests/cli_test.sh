@@ -8,20 +8,9 @@
 # bugs that are reported but do not fail the suite), then "N passed, M failed".
 set -u
 
-: "${MVKP:?set MVKP to the mvkp binary}"
-: "${SAMPLES:?set SAMPLES to the samples directory}"
-PY=/usr/bin/python3
-T=$(mktemp -d "${TMPDIR:-/tmp}/mvkp_cli_test.XXXXXX") || exit 1
-trap 'rm -rf "$T"' EXIT
-start=$SECONDS
-passed=0
-failed=0
-known=0
-
-# --- helpers -----------------------------------------------------------------
-
 # shellcheck source=cli_lib.sh
 source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
+cli_init cli
 
 # known_bug NOTE CHECK...: run one check whose failure is a reported, unfixed product
 # bug. Crashes and hangs still FAIL. When the bug is fixed the check prints "ok".
@@ -328,6 +317,4 @@ EOF
   check "match good+missing query: stderr names the missing file" grep -qF "$D/no_such_file.png" "$T/err"
 fi
 
-echo "runtime: $((SECONDS - start)) s; $known KNOWN-BUG lines (reported product bugs, not counted as failures)"
-echo "$passed passed, $failed failed"
-[[ $failed -eq 0 ]] || exit 1
+cli_finish "$known KNOWN-BUG lines (reported product bugs, not counted as failures)"

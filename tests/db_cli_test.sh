@@ -6,37 +6,9 @@
 # Run by CTest with MVKP=<mvkp binary> and SAMPLES=<repo>/samples.
 set -u
 
-: "${MVKP:?set MVKP to the mvkp binary}"
-: "${SAMPLES:?set SAMPLES to the samples directory}"
-PY=/usr/bin/python3
-T=$(mktemp -d "${TMPDIR:-/tmp}/mvkp_db_test.XXXXXX") || exit 1
-trap 'rm -rf "$T"' EXIT
-start=$SECONDS
-passed=0
-failed=0
-known=0
-
 # shellcheck source=cli_lib.sh
 source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
-
-# expect_fail DESC WORD CMD...: exit exactly 1, one stderr line containing WORD.
-expect_fail() {
-  local desc=$1 word=$2; shift 2
-  run "$@"
-  local why lines
-  lines=$(grep -c '' "$T/err")
-  if why=$(process_problem); then
-    fail "$desc: $why"
-  elif ((RC != 1)); then
-    fail "$desc: exit $RC, want 1: $(first_err)"
-  elif ((lines != 1)); then
-    fail "$desc: expected one stderr line, got $lines: $(first_err)"
-  elif ! grep -qiF -- "$word" "$T/err"; then
-    fail "$desc: stderr lacks '$word': $(first_err)"
-  else
-    ok "$desc ($(cat "$T/err"))"
-  fi
-}
+cli_init db
 
 count() { "$MVKP" db list "$1" --json | $PY -c "import json,sys; print(len(json.load(sys.stdin)))"; }
 
@@ -103,6 +75,4 @@ expect_fail "db list: not a database" "not an mvkp target database" "$MVKP" db l
 expect_fail "db add: missing database" "$T/none.db" "$MVKP" db add "$T/none.db" --id a --image "$SAMPLES/coffee.jpg"
 check "no database created by a failed add" test ! -e "$T/none.db"
 
-echo "runtime: $((SECONDS - start)) s"
-echo "$passed passed, $failed failed"
-[[ $failed -eq 0 ]] || exit 1
+cli_finish

@@ -9,40 +9,9 @@
 # "FAIL: ..." line per check, then "N passed, M failed".
 set -u
 
-: "${MVKP:?set MVKP to the mvkp binary}"
-: "${SAMPLES:?set SAMPLES to the samples directory}"
-PY=/usr/bin/python3
-T=$(mktemp -d "${TMPDIR:-/tmp}/mvkp_knn_test.XXXXXX") || exit 1
-trap 'rm -rf "$T"' EXIT
-start=$SECONDS
-passed=0
-failed=0
-known=0
-
-# --- helpers -----------------------------------------------------------------
-
 # shellcheck source=cli_lib.sh
 source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
-
-# expect_fail DESC WORD CMD...: must exit exactly 1 without crashing or hanging, and
-# print exactly one stderr line that contains WORD (case-insensitive).
-expect_fail() {
-  local desc=$1 word=$2; shift 2
-  run "$@"
-  local why lines
-  lines=$(grep -c '' "$T/err")
-  if why=$(process_problem); then
-    fail "$desc: $why"
-  elif ((RC != 1)); then
-    fail "$desc: exit $RC, want 1: $(first_err)"
-  elif ((lines != 1)); then
-    fail "$desc: expected one stderr line, got $lines: $(first_err)"
-  elif ! grep -qiF -- "$word" "$T/err"; then
-    fail "$desc: stderr lacks '$word': $(first_err)"
-  else
-    ok "$desc ($(cat "$T/err"))"
-  fi
-}
+cli_init knn
 
 # pycheck DESC ARGS... <<'EOF' script EOF: ok if the Python script exits 0; its last
 # output line is shown either way.
@@ -319,6 +288,4 @@ expect_fail "both DB and --dump-descriptors" "not both" \
 check "both given: nothing written" test ! -e "$T/both.fvecs"
 expect_fail "-o without --dump-descriptors" "--dump-descriptors" "$MVKP" knn "$DB" "$Q" --k 3 -o "$T/o.fvecs"
 
-echo "runtime: $((SECONDS - start)) s"
-echo "$passed passed, $failed failed"
-[[ $failed -eq 0 ]] || exit 1
+cli_finish

@@ -7,37 +7,9 @@
 # network; Python side: standard library only.
 set -u
 
-: "${MVKP:?set MVKP to the mvkp binary}"
-: "${SAMPLES:?set SAMPLES to the samples directory}"
-PY=/usr/bin/python3
-T=$(mktemp -d "${TMPDIR:-/tmp}/mvkp_oxford_test.XXXXXX") || exit 1
-trap 'rm -rf "$T"' EXIT
-start=$SECONDS
-passed=0
-failed=0
-known=0
-
 # shellcheck source=cli_lib.sh
 source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
-
-# expect_fail DESC WORD CMD...: exit exactly 1, one stderr line containing WORD.
-expect_fail() {
-  local desc=$1 word=$2; shift 2
-  run "$@"
-  local why lines
-  lines=$(grep -c '' "$T/err")
-  if why=$(process_problem); then
-    fail "$desc: $why"
-  elif ((RC != 1)); then
-    fail "$desc: exit $RC, want 1: $(first_err)"
-  elif ((lines != 1)); then
-    fail "$desc: expected one stderr line, got $lines: $(first_err)"
-  elif ! grep -qiF -- "$word" "$T/err"; then
-    fail "$desc: stderr lacks '$word': $(first_err)"
-  else
-    ok "$desc ($(cat "$T/err"))"
-  fi
-}
+cli_init oxford
 
 # --- a small Oxford-style sequence with known homographies (from mvkp synth) ----
 "$MVKP" synth "$SAMPLES/building.jpg" --n 3 --seed 5 --no-clutter --perspective 0.05 --min-scale 0.8 --max-scale 1.3 \
@@ -128,6 +100,4 @@ if ((RC != 0)) && ! process_problem >/dev/null; then ok "eval oxford --methods b
 run "$MVKP" eval
 if ((RC != 0)) && ! process_problem >/dev/null && grep -q "MANIFEST" "$T/err"; then ok "eval without manifest or subcommand"; else fail "bare eval: exit $RC"; fi
 
-echo "runtime: $((SECONDS - start)) s"
-echo "$passed passed, $failed failed"
-[[ $failed -eq 0 ]] || exit 1
+cli_finish

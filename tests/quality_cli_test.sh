@@ -8,37 +8,9 @@
 # "FAIL: ..." line per check, then "N passed, M failed".
 set -u
 
-: "${MVKP:?set MVKP to the mvkp binary}"
-: "${SAMPLES:?set SAMPLES to the samples directory}"
-PY=/usr/bin/python3
-T=$(mktemp -d "${TMPDIR:-/tmp}/mvkp_quality_test.XXXXXX") || exit 1
-trap 'rm -rf "$T"' EXIT
-start=$SECONDS
-passed=0
-failed=0
-known=0
-
 # shellcheck source=cli_lib.sh
 source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
-
-# expect_fail DESC WORD CMD...: exit exactly 1, one stderr line containing WORD.
-expect_fail() {
-  local desc=$1 word=$2; shift 2
-  run "$@"
-  local why lines
-  lines=$(grep -c '' "$T/err")
-  if why=$(process_problem); then
-    fail "$desc: $why"
-  elif ((RC != 1)); then
-    fail "$desc: exit $RC, want 1: $(first_err)"
-  elif ((lines != 1)); then
-    fail "$desc: expected one stderr line, got $lines: $(first_err)"
-  elif ! grep -qiF -- "$word" "$T/err"; then
-    fail "$desc: stderr lacks '$word': $(first_err)"
-  else
-    ok "$desc ($(cat "$T/err"))"
-  fi
-}
+cli_init quality
 
 # expect_reject DESC WORD CMD...: a bad option: non-zero exit, no crash, WORD on stderr.
 expect_reject() {
@@ -131,6 +103,4 @@ expect_fail "--min-stability above the number of views" "min stability" \
   "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/x.mvkp" --min-stability 100000
 check "no model left behind by rejected runs" test ! -e "$T/x.mvkp"
 
-echo "runtime: $((SECONDS - start)) s"
-echo "$passed passed, $failed failed"
-[[ $failed -eq 0 ]] || exit 1
+cli_finish
