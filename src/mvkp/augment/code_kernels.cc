@@ -1,4 +1,5 @@
 #include "mvkp/augment/internal/code_kernels.h"
+#include "mvkp/augment/internal/code_loops.h"
 
 #include <bit>
 
@@ -19,22 +20,12 @@ void SumSqDiffRowsScalar(const std::uint8_t* q, const std::uint8_t* rows, std::s
 
 void CountDiffRowsScalar(const std::uint8_t* q, const std::uint8_t* rows, std::size_t n, int dim,
                        std::int32_t* out) {
-  for (std::size_t r = 0; r < n; ++r) {
-    const std::uint8_t* x = rows + r * std::size_t(dim);
-    std::int32_t s = 0;
-    for (int j = 0; j < dim; ++j) s += q[j] != x[j];
-    out[r] = s;
-  }
+  CountDiffRowsLoop(q, rows, n, dim, out);
 }
 
 void XorPopcountRowsScalar(const std::uint64_t* q, const std::uint64_t* rows, std::size_t n, int words,
                            std::int32_t* out) {
-  for (std::size_t r = 0; r < n; ++r) {
-    const std::uint64_t* x = rows + r * std::size_t(words);
-    std::int32_t s = 0;
-    for (int w = 0; w < words; ++w) s += std::popcount(q[w] ^ x[w]);
-    out[r] = s;
-  }
+  XorPopcountRowsLoop(q, rows, n, words, out);
 }
 
 bool CpuHasAvx2() {

@@ -5,6 +5,7 @@
 #include <bit>
 
 #include "mvkp/augment/internal/code_kernels.h"
+#include "mvkp/augment/internal/code_loops.h"
 
 namespace mvkp::augment_internal {
 
@@ -59,23 +60,13 @@ void SumSqDiffRowsAvx2(const std::uint8_t* q, const std::uint8_t* rows, std::siz
 // The scalar reference's loop, auto-vectorised with AVX2.
 void CountDiffRowsAvx2(const std::uint8_t* q, const std::uint8_t* rows, std::size_t n, int dim,
                        std::int32_t* out) {
-  for (std::size_t r = 0; r < n; ++r) {
-    const std::uint8_t* x = rows + r * std::size_t(dim);
-    std::int32_t s = 0;
-    for (int j = 0; j < dim; ++j) s += q[j] != x[j];
-    out[r] = s;
-  }
+  CountDiffRowsLoop(q, rows, n, dim, out);
 }
 
 // The scalar reference's loop, here compiled to hardware popcnt.
 void XorPopcountRowsAvx2(const std::uint64_t* q, const std::uint64_t* rows, std::size_t n, int words,
                          std::int32_t* out) {
-  for (std::size_t r = 0; r < n; ++r) {
-    const std::uint64_t* x = rows + r * std::size_t(words);
-    std::int32_t s = 0;
-    for (int w = 0; w < words; ++w) s += std::popcount(q[w] ^ x[w]);
-    out[r] = s;
-  }
+  XorPopcountRowsLoop(q, rows, n, words, out);
 }
 
 }  // namespace mvkp::augment_internal
