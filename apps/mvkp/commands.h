@@ -17,6 +17,7 @@ void RegisterEvalOxford(CLI::App* eval, int* exit_code);  // `eval oxford`, a su
 void RegisterKnn(CLI::App& app, int* exit_code);
 void RegisterQuality(CLI::App& app, int* exit_code);
 void RegisterDb(CLI::App& app, int* exit_code);
+void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli

@@ -93,6 +93,7 @@ bool Recognizer::Remove(const std::string& id) {
   auto it = std::find_if(targets_.begin(), targets_.end(), [&](const Target& t) { return t.id == id; });
   if (it == targets_.end()) return false;
   targets_.erase(it);
+  focus_.erase(id);
   dirty_ = true;
   return true;
 }
@@ -139,6 +140,46 @@ void Recognizer::EnsureIndex() const {
     index_->Build(data.data(), rows, dims, labels.data());
   }
   dirty_ = false;
+}
+
+RecognitionResult Recognizer::RecognizeOne(const cv::Mat& gray, const std::string& id) const {
+  Require(!gray.empty() && gray.type() == CV_8UC1, ErrorCode::kInvalidArgument,
+          "recognise: expected a non-empty 8-bit grayscale frame");
+  std::shared_ptr<const Matcher> m;
+  {
+    std::lock_guard<std::mutex> lock(*mutex_);
+    auto it = focus_.find(id);
+    if (it == focus_.end()) {
+      const Target* t = nullptr;
+      for (const auto& x : targets_)
+        if (x.id == id) t = &x;
+      Require(t != nullptr, ErrorCode::kInvalidArgument, "recognise: no target '" + id + "'");
+      MatchOptions mo = options_.match;
+      mo.min_inliers = options_.min_inliers;
+      it = focus_.emplace(id, std::make_shared<const Matcher>(t->model, mo)).first;
+    }
+    m = it->second;
+  }
+  const MatchResult mr = m->Match(gray);
+  RecognitionResult r;
+  r.keypoints = mr.keypoints;
+  r.matches = int(mr.matches.size());
+  r.candidates = 1;
+  r.detect_ms = mr.time.smooth_ms + mr.time.detect_ms;
+  r.describe_ms = mr.time.describe_ms;
+  r.search_ms = mr.time.search_ms;
+  r.verify_ms = mr.time.verify_ms;
+  if (mr.found) {
+    Recognition x;
+    x.id = id;
+    x.homography = mr.homography;
+    x.outline = mr.outline;
+    x.inliers = mr.inliers;
+    x.votes = int(mr.matches.size());
+    x.score = x.votes ? double(x.inliers) / x.votes : 0.0;
+    r.found.push_back(x);
+  }
+  return r;
 }
 
 RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const {

@@ -25,6 +25,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -97,6 +98,13 @@ class Recognizer {
   // otherwise). With no targets, returns an empty result without looking.
   RecognitionResult Recognize(const cv::Mat& gray) const;
 
+  // Temporal focus (thesis §6.3.1): looks for one target only, with that
+  // target's own Matcher (its own small index, the half-resolution retry);
+  // much cheaper than Recognize when the target is known to be in view.
+  // Throws Error(kInvalidArgument) for an unknown id. The Matcher is built on
+  // first use and kept.
+  RecognitionResult RecognizeOne(const cv::Mat& gray, const std::string& id) const;
+
   // Bytes held: the index (with its copy of the centres) plus the models.
   std::size_t memory_bytes() const;
 
@@ -115,6 +123,7 @@ class Recognizer {
   mutable bool dirty_ = true;
   mutable std::vector<std::int32_t> label_target_;    // global location id -> target index
   mutable std::vector<std::int32_t> target_offset_;   // target index -> first global location id
+  mutable std::map<std::string, std::shared_ptr<const Matcher>> focus_;  // RecognizeOne's matchers
 };
 
 }  // namespace mvkp

@@ -1,0 +1,148 @@
+// mvkp video DB VIDEO|CAMERA_INDEX: recognition over a video with temporal
+// focus (thesis §6.3.1): once a target is found, the next frames look for
+// that target alone and return to the full search after N consecutive misses.
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "commands.h"
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+#include "mvkp/db/target_store.h"
+#include "mvkp/model/model.h"
+#include "mvkp/recognize/recognizer.h"
+#include "output.h"
+
+namespace mvkp::cli {
+namespace {
+
+struct VideoArgs {
+  std::string db, source, output;
+  bool json = false;
+  int lose_after = 3;     // consecutive misses of the focused target before the full search
+  int max_frames = 0;     // 0: all
+  bool no_focus = false;  // full search on every frame (for comparison)
+};
+
+int RunVideo(VideoArgs& a) {
+  Require(a.lose_after >= 1, ErrorCode::kInvalidArgument, "--lose-after must be >= 1");
+  Timer load;
+  const TargetStore store = TargetStore::Open(a.db);
+  std::map<std::string, std::string> titles;
+  Recognizer rec;
+  for (const auto& t : store.LoadAll()) {
+    rec.Add(t.info.id, DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'"));
+    titles[t.info.id] = t.info.title.empty() ? t.info.id : t.info.title;
+  }
+  Require(rec.size() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
+  const double load_ms = load.ElapsedMs();
+
+  cv::VideoCapture cap;
+  const bool camera = !a.source.empty() && std::all_of(a.source.begin(), a.source.end(), ::isdigit);
+  if (camera) cap.open(std::stoi(a.source));
+  else cap.open(a.source);
+  Require(cap.isOpened(), ErrorCode::kIo,
+          camera ? "camera " + a.source + ": cannot be opened" : a.source + ": cannot open video");
+  cv::VideoWriter writer;
+  std::string focus;
+  int misses = 0, frames = 0, found_frames = 0, focus_frames = 0, lost = 0;
+  bool seen = false, prev_found = false;
+  std::vector<double> ms;
+  cv::Mat frame, gray;
+  while ((a.max_frames <= 0 || frames < a.max_frames) && cap.read(frame) && !frame.empty()) {
+    if (frame.channels() == 3) cv::cvtColor(frame, gray, cv::COLOR_BGR2GRAY);
+    else if (frame.channels() == 4) cv::cvtColor(frame, gray, cv::COLOR_BGRA2GRAY);
+    else gray = frame;
+    const bool focused = !focus.empty() && !a.no_focus;
+    const RecognitionResult r = focused ? rec.RecognizeOne(gray, focus) : rec.Recognize(gray);
+    const double t = r.total_ms();
+    ms.push_back(t);
+    const bool found = !r.found.empty();
+    if (found) {
+      focus = r.found.front().id;
+      misses = 0;
+      ++found_frames;
+      seen = true;
+    } else if (focused && ++misses >= a.lose_after) {
+      focus.clear();
+      misses = 0;
+    }
+    if (seen && prev_found && !found) ++lost;
+    prev_found = found;
+    focus_frames += focused;
+    if (a.json) {
+      nlohmann::json f = nlohmann::json::array();
+      for (const auto& x : r.found) {
+        nlohmann::json outline = nlohmann::json::array();
+        for (const auto& p : x.outline) outline.push_back({p.x, p.y});
+        f.push_back({{"id", x.id}, {"title", titles[x.id]}, {"outline", outline}, {"inliers", x.inliers}});
+      }
+      std::cout << nlohmann::json{{"frame", frames}, {"mode", focused ? "focus" : "full"}, {"found", f}, {"time_ms", t}}.dump()
+                << "\n";
+    }
+    if (!a.output.empty()) {
+      cv::Mat out;
+      if (frame.channels() == 1) cv::cvtColor(frame, out, cv::COLOR_GRAY2BGR);
+      else if (frame.channels() == 4) cv::cvtColor(frame, out, cv::COLOR_BGRA2BGR);
+      else out = frame.clone();
+      for (const auto& x : r.found) {
+        std::vector<cv::Point> poly;
+        for (const auto& p : x.outline) poly.emplace_back(int(std::lround(p.x)), int(std::lround(p.y)));
+        cv::polylines(out, poly, true, cv::Scalar(0, 255, 0), 3, cv::LINE_AA);
+        cv::putText(out, titles[x.id], poly[0] + cv::Point(4, 24), cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(0, 255, 0), 2,
+                    cv::LINE_AA);
+      }
+      if (!writer.isOpened()) {
+        const double fps = cap.get(cv::CAP_PROP_FPS) > 0 ? cap.get(cv::CAP_PROP_FPS) : 25.0;
+        writer.open(a.output, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, out.size());
+        Require(writer.isOpened(), ErrorCode::kIo, a.output + ": cannot write video");
+      }
+      writer.write(out);
+    }
+    ++frames;
+  }
+  Require(frames > 0, ErrorCode::kIo, (camera ? "camera " : "") + a.source + ": no frames");
+  std::vector<double> sorted = ms;
+  std::sort(sorted.begin(), sorted.end());
+  double mean = 0;
+  for (double v : ms) mean += v;
+  mean /= ms.size();
+  const nlohmann::json summary = {{"frames", frames},
+                                  {"found_frames", found_frames},
+                                  {"focus_frames", focus_frames},
+                                  {"lost_after_found", lost},
+                                  {"median_ms", sorted[sorted.size() / 2]},
+                                  {"mean_ms", mean},
+                                  {"max_ms", sorted.back()},
+                                  {"targets", rec.size()},
+                                  {"load_ms", load_ms}};
+  if (a.json) std::cout << nlohmann::json{{"summary", summary}}.dump() << std::endl;
+  else
+    std::printf("%d frames: target found in %d (%d searched with focus), lost %d times after being found; "
+                "%.2f ms median, %.2f mean, %.2f max per frame (%zu targets, loaded in %.0f ms)\n",
+                frames, found_frames, focus_frames, lost, sorted[sorted.size() / 2], mean, sorted.back(), rec.size(),
+                load_ms);
+  return 0;
+}
+
+}  // namespace
+
+void RegisterVideo(CLI::App& app, int* code) {
+  auto a = std::make_shared<VideoArgs>();
+  auto* c = app.add_subcommand("video", "Recognise database targets in a video or camera, with temporal focus");
+  c->add_option("DB", a->db, "target database (mvkp db)")->required();
+  c->add_option("SOURCE", a->source, "video file, or a camera index such as 0")->required();
+  c->add_option("-o,--output", a->output, "write the annotated video here (.mp4)");
+  c->add_flag("--json", a->json, "one JSON object per frame, then a summary object");
+  c->add_option("--lose-after", a->lose_after, "misses of the focused target before the full search")->capture_default_str();
+  c->add_option("--max-frames", a->max_frames, "stop after this many frames (0: all)")->capture_default_str();
+  c->add_flag("--no-focus", a->no_focus, "full search on every frame");
+  c->callback([a, code] { *code = RunVideo(*a); });
+}
+
+}  // namespace mvkp::cli
