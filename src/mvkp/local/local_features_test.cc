@@ -7,14 +7,12 @@
 #include "mvkp/core/error.h"
 #include "mvkp/local/pair_match.h"
 
+#include "test_samples.h"
+
 namespace mvkp {
 namespace {
 
-cv::Mat Sample(const char* name) {
-  cv::Mat m = cv::imread(std::string(MVKP_SOURCE_DIR) + "/samples/" + name, cv::IMREAD_GRAYSCALE);
-  EXPECT_FALSE(m.empty()) << name;
-  return m;
-}
+using mvkp::testing::Sample;
 
 // The image rotated by 25 degrees and scaled by 0.8 about its centre, with the homography.
 std::pair<cv::Mat, cv::Matx33d> Warped(const cv::Mat& img) {

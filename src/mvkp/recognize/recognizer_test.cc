@@ -10,14 +10,12 @@
 #include "mvkp/synth/synth.h"
 #include "mvkp/train/trainer.h"
 
+#include "test_samples.h"
+
 namespace mvkp {
 namespace {
 
-cv::Mat Sample(const std::string& name) {
-  cv::Mat m = cv::imread(std::string(MVKP_SOURCE_DIR) + "/samples/" + name, cv::IMREAD_GRAYSCALE);
-  EXPECT_FALSE(m.empty()) << name;
-  return m;
-}
+using mvkp::testing::Sample;
 
 // Four targets trained once (default training options) for the whole suite;
 // fruits.jpg and baboon.jpg are not among them.

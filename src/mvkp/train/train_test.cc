@@ -8,14 +8,12 @@
 #include "mvkp/synth/synth.h"
 #include "mvkp/train/kmeans.h"
 
+#include "test_samples.h"
+
 namespace mvkp {
 namespace {
 
-cv::Mat Sample(const char* name) {
-  cv::Mat m = cv::imread(std::string(MVKP_SOURCE_DIR) + "/samples/" + name, cv::IMREAD_GRAYSCALE);
-  EXPECT_FALSE(m.empty()) << name;
-  return m;
-}
+using mvkp::testing::Sample;
 
 TEST(KMeans, SeparatesWellSeparatedClustersDeterministically) {
   std::vector<float> pts;
