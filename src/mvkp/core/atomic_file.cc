@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 
 #include "mvkp/core/error.h"
@@ -33,6 +34,22 @@ void WriteFileAtomically(const std::string& path, const std::function<bool(std::
 
 void WriteFileAtomically(const std::string& path, const void* data, std::size_t size) {
   WriteFileAtomically(path, [&](std::FILE* f) { return size == 0 || std::fwrite(data, 1, size, f) == size; });
+}
+
+std::vector<std::uint8_t> ReadFileBytes(const std::string& path, std::uint64_t max_bytes) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(ErrorCode::kIo, path + ": no such file");
+  if (fs::is_directory(path, ec)) throw Error(ErrorCode::kIo, path + ": is a directory");
+  const auto size = fs::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, path + ": cannot read file size");
+  if (size > max_bytes) throw Error(ErrorCode::kIo, path + ": file too large (" + std::to_string(size) + " bytes)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::kIo, path + ": cannot open for reading");
+  std::vector<std::uint8_t> buf(size);
+  in.read(reinterpret_cast<char*>(buf.data()), std::streamsize(size));
+  if (!in) throw Error(ErrorCode::kIo, path + ": read error");
+  return buf;
 }
 
 }  // namespace mvkp

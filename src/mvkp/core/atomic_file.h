@@ -6,7 +6,9 @@
 #include <cstddef>
 #include <cstdio>
 #include <functional>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace mvkp {
 
@@ -17,5 +19,9 @@ void WriteFileAtomically(const std::string& path, const std::function<bool(std::
 
 // The same for one buffer.
 void WriteFileAtomically(const std::string& path, const void* data, std::size_t size);
+
+// The whole file. Throws Error(kIo) naming `path` if it is missing, a
+// directory, larger than max_bytes or unreadable.
+std::vector<std::uint8_t> ReadFileBytes(const std::string& path, std::uint64_t max_bytes = std::uint64_t(1) << 31);
 
 }  // namespace mvkp

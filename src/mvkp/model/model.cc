@@ -204,17 +204,7 @@ void SaveModel(const Model& model, const std::string& path) {
 }
 
 Model LoadModel(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw Error(ErrorCode::kIo, path + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) throw Error(ErrorCode::kIo, path + ": is a directory, not a model");
-  const auto size = std::filesystem::file_size(path, ec);
-  if (ec) throw Error(ErrorCode::kIo, path + ": cannot read file size");
-  if (size > (1ull << 31)) Bad(path, "file too large to be an mvkp model");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(ErrorCode::kIo, path + ": cannot open for reading");
-  std::vector<std::uint8_t> buf(size);
-  in.read(reinterpret_cast<char*>(buf.data()), std::streamsize(size));
-  if (!in) throw Error(ErrorCode::kIo, path + ": read error");
+  const std::vector<std::uint8_t> buf = ReadFileBytes(path);
   return DeserializeModel(buf.data(), buf.size(), path);
 }
 
