@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -17,6 +18,7 @@
 #include "mvkp/model/model.h"
 #include "mvkp/recognize/recognizer.h"
 #include "output.h"
+#include "pose_cli.h"
 
 namespace mvkp::cli {
 namespace {
@@ -27,16 +29,20 @@ struct VideoArgs {
   int lose_after = 3;     // consecutive misses of the focused target before the full search
   int max_frames = 0;     // 0: all
   bool no_focus = false;  // full search on every frame (for comparison)
+  PoseSupport pose;       // --camera, --width-m
 };
 
 int RunVideo(VideoArgs& a) {
   Require(a.lose_after >= 1, ErrorCode::kInvalidArgument, "--lose-after must be >= 1");
+  a.pose.Load();  // a bad --camera file fails before any work
   Timer load;
   const TargetStore store = TargetStore::Open(a.db);
   std::map<std::string, std::string> titles;
   Recognizer rec;
   for (const auto& t : store.LoadAll()) {
-    rec.Add(t.info.id, DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'"));
+    const Model model = DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'");
+    a.pose.AddTarget(t.info.id, t.info.meta, model.object_width, model.object_height, a.db);
+    rec.Add(t.info.id, model);
     titles[t.info.id] = t.info.title.empty() ? t.info.id : t.info.title;
   }
   Require(rec.size() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
@@ -59,7 +65,10 @@ int RunVideo(VideoArgs& a) {
     else if (frame.channels() == 4) cv::cvtColor(frame, gray, cv::COLOR_BGRA2GRAY);
     else gray = frame;
     const bool focused = !focus.empty() && !a.no_focus;
+    if (a.pose.enabled()) a.pose.Camera(gray.size(), a.source);  // another aspect ratio: an error before any work
     const RecognitionResult r = focused ? rec.RecognizeOne(gray, focus) : rec.Recognize(gray);
+    std::vector<std::optional<Pose>> poses;
+    for (const auto& x : r.found) poses.push_back(a.pose.Estimate(x, gray.size(), a.source));
     const double t = r.total_ms();
     ms.push_back(t);
     const bool found = !r.found.empty();
@@ -77,10 +86,12 @@ int RunVideo(VideoArgs& a) {
     focus_frames += focused;
     if (a.json) {
       nlohmann::json f = nlohmann::json::array();
-      for (const auto& x : r.found) {
+      for (std::size_t k = 0; k < r.found.size(); ++k) {
+        const Recognition& x = r.found[k];
         nlohmann::json outline = nlohmann::json::array();
         for (const auto& p : x.outline) outline.push_back({p.x, p.y});
         f.push_back({{"id", x.id}, {"title", titles[x.id]}, {"outline", outline}, {"inliers", x.inliers}});
+        if (poses[k]) f.back()["pose"] = PoseSupport::Json(*poses[k]);
       }
       std::cout << nlohmann::json{{"frame", frames}, {"mode", focused ? "focus" : "full"}, {"found", f}, {"time_ms", t}}.dump()
                 << "\n";
@@ -97,6 +108,8 @@ int RunVideo(VideoArgs& a) {
         cv::putText(out, titles[x.id], poly[0] + cv::Point(4, 24), cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(0, 255, 0), 2,
                     cv::LINE_AA);
       }
+      for (std::size_t k = 0; k < r.found.size(); ++k)
+        if (poses[k]) a.pose.DrawAxes(out, r.found[k].id, *poses[k], gray.size(), a.source);
       if (!writer.isOpened()) {
         const double fps = cap.get(cv::CAP_PROP_FPS) > 0 ? cap.get(cv::CAP_PROP_FPS) : 25.0;
         writer.open(a.output, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, out.size());
@@ -142,6 +155,7 @@ void RegisterVideo(CLI::App& app, int* code) {
   c->add_option("--lose-after", a->lose_after, "misses of the focused target before the full search")->capture_default_str();
   c->add_option("--max-frames", a->max_frames, "stop after this many frames (0: all)")->capture_default_str();
   c->add_flag("--no-focus", a->no_focus, "full search on every frame");
+  a->pose.AddOptions(c);
   c->callback([a, code] { *code = RunVideo(*a); });
 }
 
