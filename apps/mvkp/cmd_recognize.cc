@@ -4,6 +4,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 
@@ -15,6 +16,7 @@
 #include "mvkp/model/model.h"
 #include "mvkp/recognize/recognizer.h"
 #include "output.h"
+#include "pose_cli.h"
 
 namespace mvkp::cli {
 namespace {
@@ -26,6 +28,7 @@ struct RecognizeArgs {
   bool affine = false;
   std::string draw;
   RecognizerOptions opt;
+  PoseSupport pose;  // --camera, --width-m
 };
 
 nlohmann::json RecognitionJson(const Recognition& f, const std::string& title) {
@@ -61,6 +64,7 @@ cv::Mat DrawRecognition(const cv::Mat& frame_bgr, const RecognitionResult& r,
 int RunRecognize(RecognizeArgs& a) {
   if (a.affine) a.opt.match.geometry = GeometryModel::kAffine;
   a.opt.Check();
+  a.pose.Load();  // a bad --camera file fails before any work
   Timer tl;
   const TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadOnly);
   const std::vector<TargetRecord> records = store.LoadAll();
@@ -68,9 +72,12 @@ int RunRecognize(RecognizeArgs& a) {
   Recognizer rec(a.opt);
   std::map<std::string, std::string> titles;
   for (const auto& t : records) {
-    rec.Add(t.info.id, DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'"));
+    const Model model = DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'");
+    a.pose.AddTarget(t.info.id, t.info.meta, model.object_width, model.object_height, a.db);
+    rec.Add(t.info.id, model);
     titles[t.info.id] = t.info.title;
   }
+  rec.ShrinkToFit();
   const std::size_t bytes = rec.memory_bytes();  // also builds the index
   const double load_ms = tl.ElapsedMs();
   // Load time: a text line first, or fields of every JSON line (stderr stays for errors only).
@@ -83,10 +90,16 @@ int RunRecognize(RecognizeArgs& a) {
     const std::string& q = a.queries[i];
     try {
       const cv::Mat frame = LoadImageGray(q);
+      if (a.pose.enabled()) a.pose.Camera(frame.size(), q);  // another aspect ratio: an error for this query
       const RecognitionResult r = rec.Recognize(frame);
+      std::vector<std::optional<Pose>> poses;
+      for (const auto& f : r.found) poses.push_back(a.pose.Estimate(f, frame.size(), q));
       if (a.json) {
         nlohmann::json found = nlohmann::json::array();
-        for (const auto& f : r.found) found.push_back(RecognitionJson(f, titles[f.id]));
+        for (std::size_t k = 0; k < r.found.size(); ++k) {
+          found.push_back(RecognitionJson(r.found[k], titles[r.found[k].id]));
+          if (poses[k]) found.back()["pose"] = PoseSupport::Json(*poses[k]);
+        }
         const nlohmann::json time = {{"detect", r.detect_ms},
                                      {"describe", r.describe_ms},
                                      {"search", r.search_ms},
@@ -104,12 +117,18 @@ int RunRecognize(RecognizeArgs& a) {
           const auto& f = r.found[k];
           std::printf("%s %s", k ? "," : "", f.id.c_str());
           if (!titles[f.id].empty()) std::printf(" \"%s\"", titles[f.id].c_str());
-          std::printf(" (%d inliers of %d votes)", f.inliers, f.votes);
+          std::printf(" (%d inliers of %d votes", f.inliers, f.votes);
+          if (poses[k]) std::printf(", distance %.2f m", poses[k]->distance);
+          std::printf(")");
         }
         std::printf("; %d keypoints, %.2f ms\n", r.keypoints, r.total_ms());
       }
-      if (!a.draw.empty())
-        SaveImage(IndexedPath(a.draw, int(i), int(a.queries.size())), DrawRecognition(LoadImageColor(q), r, titles));
+      if (!a.draw.empty()) {
+        cv::Mat img = DrawRecognition(LoadImageColor(q), r, titles);
+        for (std::size_t k = 0; k < r.found.size(); ++k)
+          if (poses[k]) a.pose.DrawAxes(img, r.found[k].id, *poses[k], frame.size(), q);
+        SaveImage(IndexedPath(a.draw, int(i), int(a.queries.size())), img);
+      }
     } catch (const std::exception& e) {
       ++failures;
       std::fprintf(stderr, "mvkp recognize: %s\n", e.what());
@@ -127,7 +146,9 @@ void RegisterRecognize(CLI::App& app, int* code) {
   c->add_option("DB", a->db, "target database from 'mvkp db'")->required();
   c->add_option("QUERY", a->queries, "query images")->required();
   c->add_flag("--json", a->json, "one JSON object per line, per query");
-  c->add_option("--draw", a->draw, "write the frame with each found outline and title here (-N suffix for several queries)");
+  c->add_option("--draw", a->draw,
+                "write the frame with each found outline, title and pose axes here (-N suffix for several queries)");
+  a->pose.AddOptions(c);
   MatchOptions& m = a->opt.match;
   c->add_option("--ratio", m.ratio, "distance-ratio threshold d1/d2")->capture_default_str();
   c->add_option("--max-points", m.max_points, "strongest query points")->capture_default_str();
@@ -144,6 +165,13 @@ void RegisterRecognize(CLI::App& app, int* code) {
   c->add_option("--max-candidates", a->opt.max_candidates, "targets verified per frame, most votes first")->capture_default_str();
   c->add_option("--min-votes", a->opt.min_votes, "ratio-test matches a target needs to be verified")->capture_default_str();
   c->add_option("--min-inliers", a->opt.min_inliers, "RANSAC inliers to accept a target")->capture_default_str();
+  const std::map<std::string, RecognizerSearch> searches = {{"exact", RecognizerSearch::kExact},
+                                                            {"words", RecognizerSearch::kWords}};
+  c->add_option("--search", a->opt.search,
+                "exact: all centres in one FFVA index (best recall, ~700 KB/target); words: inverted file of visual "
+                "words with Hamming signatures (~7 KB/target, for thousands of targets)")
+      ->transform(CLI::CheckedTransformer(searches, CLI::ignore_case))
+      ->default_str("exact");
   c->callback([a, code] { *code = RunRecognize(*a); });
 }
 

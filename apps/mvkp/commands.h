@@ -19,5 +19,6 @@ void RegisterQuality(CLI::App& app, int* exit_code);
 void RegisterDb(CLI::App& app, int* exit_code);
 void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
+void RegisterVocab(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli

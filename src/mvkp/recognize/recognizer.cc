@@ -1,8 +1,10 @@
 #include "mvkp/recognize/recognizer.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -16,6 +18,11 @@ namespace mvkp {
 
 void RecognizerOptions::Check() const {
   match.Check();
+  Require(max_locations >= 4 && max_locations <= 256, ErrorCode::kInvalidArgument, "max locations must be in 4..256");
+  Require(words_per_location >= 1 && words_per_location <= 64, ErrorCode::kInvalidArgument,
+          "words per location must be in 1..64");
+  Require(query_words >= 1 && query_words <= 8, ErrorCode::kInvalidArgument, "query words must be in 1..8");
+  Require(max_hamming >= 0 && max_hamming <= 32, ErrorCode::kInvalidArgument, "max hamming must be in 0..32");
   Require(max_candidates >= 1 && max_candidates <= 100000, ErrorCode::kInvalidArgument,
           "max candidates must be in 1..100000");
   Require(min_votes >= 4, ErrorCode::kInvalidArgument, "min votes must be >= 4");
@@ -38,12 +45,153 @@ std::string FeatureMismatch(const ModelParams& a, const ModelParams& b) {
   return "";
 }
 
-struct Vote {
-  cv::Point2f object, query;
+// Object locations are stored in quarter pixels: 4 bytes per location.
+constexpr float kLocationScale = 4.f;
+constexpr float kMaxObjectSide = 65535.f / kLocationScale;
+
+struct Posting {
+  std::uint32_t slot_loc;   // slot << 8 | location
+  std::uint32_t signature;  // Hamming signature of the location's centres in this word
 };
 
-// Robust fit over one target's correspondences (as Matcher::Verify).
-bool VerifyTarget(const std::vector<Vote>& votes, const Model& model, const RecognizerOptions& o, Recognition& out) {
+struct WordPosting {
+  std::int32_t word;
+  Posting posting;
+};
+
+struct Vote {
+  cv::Point2f object, query;
+  int query_index;
+};
+
+}  // namespace
+
+struct Recognizer::Impl {
+  struct Target {
+    std::string id;
+    int width = 0, height = 0;
+    std::vector<std::uint16_t> xy;        // kWords: 2 per kept location, quarter pixels
+    std::shared_ptr<const Model> model;   // kExact or keep_models
+    bool alive = false;
+    cv::Point2f location(int loc) const {
+      return {xy[2 * std::size_t(loc)] / kLocationScale, xy[2 * std::size_t(loc) + 1] / kLocationScale};
+    }
+  };
+
+  const Vocabulary* vocab = nullptr;
+  bool have_params = false;
+  ModelParams params;
+  std::string first_id;
+  std::vector<Target> slots;
+  std::vector<std::uint32_t> free_slots;
+  std::unordered_map<std::string, std::uint32_t> by_id;
+  std::vector<std::vector<Posting>> lists;  // kWords: one per word
+
+  // kExact: built lazily from the alive slots.
+  mutable std::mutex mutex;
+  mutable std::unique_ptr<KnnIndex> index;
+  mutable bool dirty = true;
+  mutable std::vector<std::uint32_t> label_slot;    // global location id -> slot
+  mutable std::vector<std::int32_t> label_loc;      // global location id -> location in its model
+  mutable std::map<std::string, std::shared_ptr<const Matcher>> focus;  // RecognizeOne's matchers
+
+  void EnsureIndex(const RecognizerOptions& o) const;
+  std::vector<WordPosting> Encode(const Model& m, std::uint32_t slot, const RecognizerOptions& o,
+                                  std::vector<std::uint16_t>& xy) const;
+};
+
+std::vector<WordPosting> Recognizer::Impl::Encode(const Model& m, std::uint32_t slot, const RecognizerOptions& o,
+                                                  std::vector<std::uint16_t>& xy) const {
+  const int L = std::min<int>(o.max_locations, int(m.locations.size()));
+  xy.resize(2 * std::size_t(L));
+  for (int l = 0; l < L; ++l) {
+    const auto& p = m.locations[std::size_t(l)];
+    xy[2 * std::size_t(l)] = std::uint16_t(std::lround(std::clamp(p.x, 0.f, kMaxObjectSide) * kLocationScale));
+    xy[2 * std::size_t(l) + 1] = std::uint16_t(std::lround(std::clamp(p.y, 0.f, kMaxObjectSide) * kLocationScale));
+  }
+  // The centres of the kept locations, quantised.
+  std::vector<int> rows;
+  for (int r = 0; r < m.descriptors.rows; ++r)
+    if (m.labels[std::size_t(r)] < L) rows.push_back(r);
+  const int dims = m.descriptors.cols;
+  std::vector<float> x(rows.size() * std::size_t(dims));
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    std::copy_n(m.descriptors.ptr<float>(rows[i]), dims, &x[i * std::size_t(dims)]);
+  std::vector<WordAssignment> wa(rows.size());
+  vocab->Quantize(x.data(), rows.size(), 1, wa.data());
+
+  // Per location: the words its centres fall in most often (ties: nearer
+  // centres first), each with the signature of the mean of those centres.
+  struct WordStat {
+    int word = 0, count = 0;
+    float distance = 0;
+    std::vector<double> sum;
+  };
+  std::vector<std::vector<WordStat>> per_loc(static_cast<std::size_t>(L));
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    auto& ws = per_loc[std::size_t(m.labels[std::size_t(rows[i])])];
+    auto it = std::find_if(ws.begin(), ws.end(), [&](const WordStat& s) { return s.word == wa[i].word; });
+    if (it == ws.end()) {
+      ws.push_back({wa[i].word, 0, 0.f, std::vector<double>(std::size_t(dims), 0.0)});
+      it = ws.end() - 1;
+    }
+    ++it->count;
+    it->distance += wa[i].distance;
+    for (int j = 0; j < dims; ++j) it->sum[std::size_t(j)] += x[i * std::size_t(dims) + std::size_t(j)];
+  }
+  std::vector<WordPosting> out;
+  std::vector<float> mean(static_cast<std::size_t>(dims));
+  for (int l = 0; l < L; ++l) {
+    auto& ws = per_loc[std::size_t(l)];
+    std::stable_sort(ws.begin(), ws.end(), [](const WordStat& a, const WordStat& b) {
+      return a.count != b.count ? a.count > b.count : a.distance / float(a.count) < b.distance / float(b.count);
+    });
+    for (std::size_t k = 0; k < ws.size() && int(k) < o.words_per_location; ++k) {
+      for (int j = 0; j < dims; ++j) mean[std::size_t(j)] = float(ws[k].sum[std::size_t(j)] / ws[k].count);
+      out.push_back({ws[k].word, {slot << 8 | std::uint32_t(l), vocab->Signature(mean.data(), ws[k].word)}});
+    }
+  }
+  return out;
+}
+
+void Recognizer::Impl::EnsureIndex(const RecognizerOptions& o) const {
+  std::lock_guard<std::mutex> lock(mutex);
+  if (!dirty) return;
+  index.reset();
+  label_slot.clear();
+  label_loc.clear();
+  std::vector<float> data;
+  std::vector<std::int32_t> labels;
+  for (std::uint32_t s = 0; s < slots.size(); ++s) {
+    if (!slots[s].alive) continue;
+    const Model& m = *slots[s].model;
+    const std::int64_t offset = std::int64_t(label_slot.size());
+    Require(offset + std::int64_t(m.locations.size()) < std::numeric_limits<std::int32_t>::max(),
+            ErrorCode::kInvalidArgument, "too many object locations over all targets");
+    for (int r = 0; r < m.descriptors.rows; ++r) {
+      const float* p = m.descriptors.ptr<float>(r);
+      data.insert(data.end(), p, p + m.descriptors.cols);
+      labels.push_back(std::int32_t(offset + m.labels[std::size_t(r)]));
+    }
+    for (std::size_t l = 0; l < m.locations.size(); ++l) {
+      label_slot.push_back(s);
+      label_loc.push_back(std::int32_t(l));
+    }
+  }
+  if (!labels.empty()) {
+    index = MakeIndexByName(o.match.index);
+    index->Build(data.data(), labels.size(), params.dims, labels.data());
+  }
+  dirty = false;
+}
+
+namespace {
+
+// Robust fit over one target's correspondences (as Matcher::Verify); inliers
+// are counted as distinct query points, since a query point may vote for
+// several locations of one target.
+bool VerifyTarget(const std::vector<Vote>& votes, int width, int height, const RecognizerOptions& o, int min_inliers,
+                  Recognition& out) {
   std::vector<cv::Point2f> src, dst;
   src.reserve(votes.size());
   dst.reserve(votes.size());
@@ -51,112 +199,132 @@ bool VerifyTarget(const std::vector<Vote>& votes, const Model& model, const Reco
     src.push_back(v.object);
     dst.push_back(v.query);
   }
+  if (int(votes.size()) < std::max(4, min_inliers)) return false;
   cv::theRNG().state = 0x12345678;  // reproducible RANSAC
   const GeometryFit g = FitGeometry(src, dst, o.match);
-  if (!g.ok || g.inliers < o.min_inliers) return false;
-  const cv::Matx33d Hm = g.homography;
-  const int inl = g.inliers;
-  const std::array<cv::Point2f, 4> quad = ProjectOutline(Hm, model.object_width, model.object_height);
+  if (!g.ok || g.inliers < min_inliers) return false;
+  std::vector<int> q;
+  for (std::size_t i = 0; i < votes.size() && i < g.mask.size(); ++i)
+    if (g.mask[i]) q.push_back(votes[i].query_index);
+  std::sort(q.begin(), q.end());
+  const int inl = int(std::unique(q.begin(), q.end()) - q.begin());
+  if (inl < min_inliers) return false;
+  const std::array<cv::Point2f, 4> quad = ProjectOutline(g.homography, width, height);
   if (!IsPlausibleOutline(quad)) return false;
-  out.homography = Hm;
+  out.homography = g.homography;
   out.outline = quad;
   out.inliers = inl;
-  out.votes = int(votes.size());
-  out.score = double(inl) / double(votes.size());
   return true;
 }
 
 }  // namespace
 
-Recognizer::Recognizer(const RecognizerOptions& options) : options_(options), mutex_(std::make_unique<std::mutex>()) {
+Recognizer::Recognizer(const RecognizerOptions& options, const Vocabulary* vocabulary)
+    : impl_(std::make_unique<Impl>()), options_(options) {
   options_.Check();
+  if (options_.search == RecognizerSearch::kWords) {
+    Require(vocabulary == nullptr || vocabulary->dims() > 0, ErrorCode::kInvalidArgument, "recognizer: empty vocabulary");
+    impl_->vocab = vocabulary ? vocabulary : &DefaultVocabulary();
+    Require(!impl_->vocab->empty(), ErrorCode::kInvalidArgument, "recognizer: empty vocabulary");
+    impl_->lists.resize(std::size_t(impl_->vocab->size()));
+  }
 }
 Recognizer::~Recognizer() = default;
 Recognizer::Recognizer(Recognizer&&) noexcept = default;
 Recognizer& Recognizer::operator=(Recognizer&&) noexcept = default;
 
 void Recognizer::Add(const std::string& id, const Model& model) {
+  Impl& im = *impl_;
   Require(!id.empty(), ErrorCode::kInvalidArgument, "target id must not be empty");
   Require(!Contains(id), ErrorCode::kInvalidArgument, "target '" + id + "' already exists");
   model.Validate("target '" + id + "'");
-  if (!targets_.empty()) {
-    const std::string diff = FeatureMismatch(targets_.front().model.params, model.params);
+  if (im.have_params) {
+    const std::string diff = FeatureMismatch(im.params, model.params);
     Require(diff.empty(), ErrorCode::kInvalidArgument,
             "target '" + id + "': feature setting " + diff + " differs from the targets already added (e.g. '" +
-                targets_.front().id + "'); all targets must share the query-side feature settings");
+                im.first_id + "'); all targets must share the query-side feature settings");
   }
-  targets_.push_back({id, model});
-  dirty_ = true;
+  const bool words = options_.search == RecognizerSearch::kWords;
+  if (words) {
+    Require(model.params.dims == im.vocab->dims(), ErrorCode::kInvalidArgument,
+            "target '" + id + "': descriptor dims " + std::to_string(model.params.dims) +
+                " differ from the vocabulary's " + std::to_string(im.vocab->dims()));
+    Require(model.object_width <= kMaxObjectSide && model.object_height <= kMaxObjectSide,
+            ErrorCode::kInvalidArgument, "target '" + id + "': larger than 16383 px");
+  }
+  std::uint32_t slot;
+  if (!im.free_slots.empty()) {
+    slot = im.free_slots.back();
+  } else {
+    Require(im.slots.size() < (std::size_t(1) << 24), ErrorCode::kInvalidArgument, "too many targets (16777216)");
+    slot = std::uint32_t(im.slots.size());
+  }
+  Impl::Target t;
+  t.id = id;
+  t.width = model.object_width;
+  t.height = model.object_height;
+  t.alive = true;
+  std::vector<WordPosting> enc;
+  if (words) enc = im.Encode(model, slot, options_, t.xy);  // may throw: nothing changed yet
+  if (!words || options_.keep_models) t.model = std::make_shared<const Model>(model);
+
+  if (slot == im.slots.size()) im.slots.emplace_back();
+  else im.free_slots.pop_back();
+  im.slots[slot] = std::move(t);
+  for (const auto& e : enc) im.lists[std::size_t(e.word)].push_back(e.posting);
+  im.by_id.emplace(id, slot);
+  if (!im.have_params) {
+    im.have_params = true;
+    im.params = model.params;
+    im.first_id = id;
+  }
+  ids_.push_back(id);
+  im.dirty = true;
 }
 
 bool Recognizer::Remove(const std::string& id) {
-  auto it = std::find_if(targets_.begin(), targets_.end(), [&](const Target& t) { return t.id == id; });
-  if (it == targets_.end()) return false;
-  targets_.erase(it);
-  focus_.erase(id);
-  dirty_ = true;
+  Impl& im = *impl_;
+  auto it = im.by_id.find(id);
+  if (it == im.by_id.end()) return false;
+  const std::uint32_t slot = it->second;
+  for (auto& list : im.lists)
+    std::erase_if(list, [slot](const Posting& p) { return p.slot_loc >> 8 == slot; });
+  im.slots[slot] = Impl::Target{};
+  im.free_slots.push_back(slot);
+  im.by_id.erase(it);
+  im.focus.erase(id);
+  ids_.erase(std::find(ids_.begin(), ids_.end(), id));
+  im.dirty = true;
+  if (ids_.empty()) im.have_params = false;
   return true;
 }
 
-bool Recognizer::Contains(const std::string& id) const {
-  return std::any_of(targets_.begin(), targets_.end(), [&](const Target& t) { return t.id == id; });
-}
+bool Recognizer::Contains(const std::string& id) const { return impl_->by_id.count(id) > 0; }
 
-std::vector<std::string> Recognizer::ids() const {
-  std::vector<std::string> out;
-  for (const auto& t : targets_) out.push_back(t.id);
-  return out;
-}
-
-void Recognizer::EnsureIndex() const {
-  std::lock_guard<std::mutex> lock(*mutex_);
-  if (!dirty_) return;
-  index_.reset();
-  label_target_.clear();
-  target_offset_.clear();
-  if (!targets_.empty()) {
-    const int dims = targets_.front().model.params.dims;
-    std::size_t rows = 0;
-    for (const auto& t : targets_) rows += std::size_t(t.model.descriptors.rows);
-    std::vector<float> data;
-    std::vector<std::int32_t> labels;
-    data.reserve(rows * std::size_t(dims));
-    labels.reserve(rows);
-    std::int64_t offset = 0;
-    for (std::size_t ti = 0; ti < targets_.size(); ++ti) {
-      const Model& m = targets_[ti].model;
-      Require(offset + std::int64_t(m.locations.size()) < std::numeric_limits<std::int32_t>::max(),
-              ErrorCode::kInvalidArgument, "too many object locations over all targets");
-      target_offset_.push_back(std::int32_t(offset));
-      for (int r = 0; r < m.descriptors.rows; ++r) {
-        const float* p = m.descriptors.ptr<float>(r);
-        data.insert(data.end(), p, p + dims);
-        labels.push_back(std::int32_t(offset + m.labels[std::size_t(r)]));
-      }
-      label_target_.insert(label_target_.end(), m.locations.size(), std::int32_t(ti));
-      offset += std::int64_t(m.locations.size());
-    }
-    index_ = MakeIndexByName(options_.match.index);
-    index_->Build(data.data(), rows, dims, labels.data());
-  }
-  dirty_ = false;
+void Recognizer::ShrinkToFit() {
+  for (auto& list : impl_->lists) list.shrink_to_fit();
 }
 
 RecognitionResult Recognizer::RecognizeOne(const cv::Mat& gray, const std::string& id) const {
   Require(!gray.empty() && gray.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "recognise: expected a non-empty 8-bit grayscale frame");
+  const Impl& im = *impl_;
+  auto found = im.by_id.find(id);
+  Require(found != im.by_id.end(), ErrorCode::kInvalidArgument, "recognise: no target '" + id + "'");
+  const Impl::Target& t = im.slots[found->second];
+  if (!t.model) {
+    // Compact focus: this target's postings only. (More signature tolerance
+    // here found more frames but also wrong poses: measured, not used.)
+    return Search(gray, found->second, options_);
+  }
   std::shared_ptr<const Matcher> m;
   {
-    std::lock_guard<std::mutex> lock(*mutex_);
-    auto it = focus_.find(id);
-    if (it == focus_.end()) {
-      const Target* t = nullptr;
-      for (const auto& x : targets_)
-        if (x.id == id) t = &x;
-      Require(t != nullptr, ErrorCode::kInvalidArgument, "recognise: no target '" + id + "'");
+    std::lock_guard<std::mutex> lock(im.mutex);
+    auto it = im.focus.find(id);
+    if (it == im.focus.end()) {
       MatchOptions mo = options_.match;
       mo.min_inliers = options_.min_inliers;
-      it = focus_.emplace(id, std::make_shared<const Matcher>(t->model, mo)).first;
+      it = im.focus.emplace(id, std::make_shared<const Matcher>(*t.model, mo)).first;
     }
     m = it->second;
   }
@@ -185,68 +353,190 @@ RecognitionResult Recognizer::RecognizeOne(const cv::Mat& gray, const std::strin
 RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const {
   Require(!gray.empty() && gray.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "recognise: expected a non-empty 8-bit grayscale frame");
-  RecognitionResult r;
-  if (targets_.empty()) return r;
-  EnsureIndex();
+  return Search(gray, -1, options_);
+}
 
-  const FeatureOptions fo = QueryFeatureOptions(targets_.front().model.params, options_.match.max_points);
-  const Features f = ExtractFeatures(gray, fo);
-  r.keypoints = int(f.keypoints.size());
+RecognitionResult Recognizer::Search(const cv::Mat& gray, std::int64_t only_slot, const RecognizerOptions& o) const {
+  const Impl& im = *impl_;
+  RecognitionResult r;
+  if (ids_.empty()) return r;
+  const bool words = o.search == RecognizerSearch::kWords;
+  if (!words) im.EnsureIndex(o);
+
+  FeatureOptions fo = QueryFeatureOptions(im.params, o.match.max_points);
+  Features f = ExtractFeatures(gray, fo);
   r.detect_ms = f.smooth_ms + f.detect_ms;
   r.describe_ms = f.describe_ms;
+  VoteAndVerify(f, only_slot, o, r);
+  int best = 0;
+  for (const auto& x : r.found) best = std::max(best, x.inliers);
+  if (best >= o.match.retry_below_inliers || o.match.half_res_points <= 0 || gray.cols < 64 || gray.rows < 64)
+    return r;
 
-  // Nearest centre and nearest centre of another location (of any target),
-  // ratio test on L2 distances; each kept match votes for its target.
+  // Nothing found, or weakly: a target may appear larger than its trained
+  // view range. As Matcher does, add points from half resolution, search and
+  // verify again, and keep each target's better result.
+  Timer th;
+  cv::Mat half;
+  cv::resize(gray, half, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+  r.detect_ms += th.ElapsedMs();
+  fo.detector.max_points = o.match.half_res_points;
+  Features g = ExtractFeatures(half, fo);
+  for (auto& kp : g.keypoints) {  // half-resolution pixel centres at full resolution
+    kp.x = 2 * kp.x + 0.5f;
+    kp.y = 2 * kp.y + 0.5f;
+  }
+  r.detect_ms += g.smooth_ms + g.detect_ms;
+  r.describe_ms += g.describe_ms;
+  f.keypoints.insert(f.keypoints.end(), g.keypoints.begin(), g.keypoints.end());
+  cv::vconcat(f.descriptors, g.descriptors, f.descriptors);
+  RecognitionResult second;
+  VoteAndVerify(f, only_slot, o, second);
+  r.search_ms += second.search_ms;
+  r.verify_ms += second.verify_ms;
+  r.keypoints = second.keypoints;
+  r.matches = second.matches;
+  r.candidates += second.candidates;
+  for (auto& x : second.found) {
+    auto it = std::find_if(r.found.begin(), r.found.end(), [&](const Recognition& y) { return y.id == x.id; });
+    if (it == r.found.end()) r.found.push_back(std::move(x));
+    else if (x.inliers > it->inliers) *it = std::move(x);
+  }
+  std::stable_sort(r.found.begin(), r.found.end(), [](const Recognition& a, const Recognition& b) { return a.inliers > b.inliers; });
+  return r;
+}
+
+void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const RecognizerOptions& o,
+                               RecognitionResult& r) const {
+  const Impl& im = *impl_;
+  const bool words = o.search == RecognizerSearch::kWords;
+  r.keypoints = int(f.keypoints.size());
   Timer ts;
   const std::size_t n = f.keypoints.size();
-  std::vector<Neighbor> nn(2 * n);
-  const float ratio = options_.match.ratio;
-  if (n > 0) index_->SearchTwoDistinctBatch(f.descriptors.ptr<float>(0), n, nn.data(), ratio);
-  std::vector<std::vector<Vote>> votes(targets_.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    const Neighbor& a = nn[2 * i];
-    const Neighbor& b = nn[2 * i + 1];
-    if (a.id < 0) continue;
-    const float d1 = std::sqrt(a.distance);
-    const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
-    if (!(d1 < ratio * d2)) continue;
-    const int ti = label_target_[std::size_t(a.label)];
-    const auto& loc = targets_[std::size_t(ti)].model.locations[std::size_t(a.label - target_offset_[std::size_t(ti)])];
-    votes[std::size_t(ti)].push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}});
-    ++r.matches;
+  std::vector<std::vector<Vote>> votes(im.slots.size());
+  std::vector<int> count(im.slots.size(), 0);
+  std::vector<float> score(im.slots.size(), 0.f);  // candidate ranking
+  if (words && n > 0) {
+    // Tentative correspondences from the inverted file; a query point votes
+    // once per target however many of its locations it hits.
+    const int k = o.query_words;
+    std::vector<WordAssignment> qa(n * std::size_t(k));
+    im.vocab->Quantize(f.descriptors.ptr<float>(0), n, k, qa.data());
+    // A vote weighs by how well the signatures agree (Hamming-embedding
+    // weighting): near-identical signatures are rarely chance.
+    std::vector<float> weight(std::size_t(o.max_hamming) + 1);
+    const float sigma = std::max(1.f, 0.5f * float(o.max_hamming));
+    for (std::size_t h = 0; h < weight.size(); ++h) weight[h] = std::exp(-float(h * h) / (2 * sigma * sigma));
+    // Per query point and target, only the best-agreeing postings (fewest
+    // differing signature bits, at most two) become correspondences: the
+    // others are mostly wrong and would drown RANSAC's inlier ratio.
+    struct Hit {
+      std::uint32_t slot;
+      int h;
+      std::uint32_t slot_loc;
+    };
+    std::vector<Hit> hits;
+    for (std::size_t i = 0; i < n; ++i) {
+      const cv::Point2f q(f.keypoints[i].x, f.keypoints[i].y);
+      hits.clear();
+      for (int j = 0; j < k; ++j) {
+        const WordAssignment& a = qa[i * std::size_t(k) + std::size_t(j)];
+        if (a.word < 0) continue;
+        for (const Posting& p : im.lists[std::size_t(a.word)]) {
+          const int h = std::popcount(p.signature ^ a.signature);
+          if (h > o.max_hamming) continue;
+          const std::uint32_t slot = p.slot_loc >> 8;
+          if (only_slot >= 0 && slot != std::uint64_t(only_slot)) continue;
+          hits.push_back({slot, h, p.slot_loc});
+        }
+      }
+      std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+        return a.slot != b.slot ? a.slot < b.slot : a.h != b.h ? a.h < b.h : a.slot_loc < b.slot_loc;
+      });
+      for (std::size_t b = 0; b < hits.size();) {
+        std::size_t e = b;
+        while (e < hits.size() && hits[e].slot == hits[b].slot) ++e;
+        const std::uint32_t slot = hits[b].slot;
+        for (std::size_t x = b; x < e && x < b + 2 && hits[x].h == hits[b].h; ++x)
+          votes[slot].push_back({im.slots[slot].location(int(hits[x].slot_loc & 0xff)), q, int(i)});
+        ++count[slot];
+        ++r.matches;
+        score[slot] += weight[std::size_t(hits[b].h)];
+        b = e;
+      }
+    }
+  } else if (n > 0 && im.index) {
+    // Nearest centre and nearest centre of another location (of any target),
+    // ratio test on L2 distances; each kept match votes for its target.
+    std::vector<Neighbor> nn(2 * n);
+    const float ratio = o.match.ratio;
+    im.index->SearchTwoDistinctBatch(f.descriptors.ptr<float>(0), n, nn.data(), ratio);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Neighbor& a = nn[2 * i];
+      const Neighbor& b = nn[2 * i + 1];
+      if (a.id < 0) continue;
+      const float d1 = std::sqrt(a.distance);
+      const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
+      if (!(d1 < ratio * d2)) continue;
+      const std::uint32_t slot = im.label_slot[std::size_t(a.label)];
+      const auto& loc = im.slots[slot].model->locations[std::size_t(im.label_loc[std::size_t(a.label)])];
+      votes[slot].push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)});
+      ++count[slot];
+      score[slot] += 1.f;
+      ++r.matches;
+    }
   }
   r.search_ms = ts.ElapsedMs();
 
   // Candidates: enough votes to be verified and to reach min_inliers; most votes first.
   Timer tv;
-  const int need = std::max(options_.min_votes, options_.min_inliers);
-  std::vector<int> cand;
-  for (std::size_t ti = 0; ti < targets_.size(); ++ti)
-    if (int(votes[ti].size()) >= need) cand.push_back(int(ti));
-  std::stable_sort(cand.begin(), cand.end(), [&](int a, int b) { return votes[std::size_t(a)].size() > votes[std::size_t(b)].size(); });
-  if (int(cand.size()) > options_.max_candidates) cand.resize(std::size_t(options_.max_candidates));
+  const int need = std::max(o.min_votes, o.min_inliers);
+  std::vector<std::uint32_t> cand;
+  for (std::uint32_t s = 0; s < im.slots.size(); ++s)
+    if (count[s] >= need) cand.push_back(s);
+  std::stable_sort(cand.begin(), cand.end(), [&](std::uint32_t a, std::uint32_t b) { return score[a] > score[b]; });
+  if (int(cand.size()) > o.max_candidates) cand.resize(std::size_t(o.max_candidates));
   r.candidates = int(cand.size());
-  for (int ti : cand) {
+  for (std::uint32_t s : cand) {
+    const Impl::Target& t = im.slots[s];
     Recognition rec;
-    if (VerifyTarget(votes[std::size_t(ti)], targets_[std::size_t(ti)].model, options_, rec)) {
-      rec.id = targets_[std::size_t(ti)].id;
+    if (VerifyTarget(votes[s], t.width, t.height, o, o.min_inliers, rec)) {
+      rec.id = t.id;
+      rec.votes = count[s];
+      rec.score = std::min(1.0, double(rec.inliers) / double(count[s]));
       r.found.push_back(std::move(rec));
     }
   }
   std::stable_sort(r.found.begin(), r.found.end(), [](const Recognition& a, const Recognition& b) { return a.inliers > b.inliers; });
   r.verify_ms = tv.ElapsedMs();
-  return r;
 }
 
 std::size_t Recognizer::memory_bytes() const {
-  EnsureIndex();
-  std::size_t bytes = index_ ? index_->memory_bytes() : 0;
-  bytes += label_target_.size() * sizeof(std::int32_t) + target_offset_.size() * sizeof(std::int32_t);
-  for (const auto& t : targets_) {
-    bytes += sizeof(Target) + t.id.size() + t.model.descriptors.total() * t.model.descriptors.elemSize() +
-             t.model.labels.size() * sizeof(std::int32_t) + t.model.locations.size() * sizeof(ObjectLocation);
+  const Impl& im = *impl_;
+  std::size_t bytes = 0;
+  if (options_.search == RecognizerSearch::kExact) {
+    im.EnsureIndex(options_);
+    if (im.index) bytes += im.index->memory_bytes();
+    bytes += im.label_slot.capacity() * sizeof(std::uint32_t) + im.label_loc.capacity() * sizeof(std::int32_t);
   }
+  for (const auto& list : im.lists) bytes += list.capacity() * sizeof(Posting);
+  for (const auto& t : im.slots) {
+    bytes += sizeof(Impl::Target) + t.id.capacity() + t.xy.capacity() * sizeof(std::uint16_t);
+    if (t.model)
+      bytes += sizeof(Model) + t.model->descriptors.total() * t.model->descriptors.elemSize() +
+               t.model->labels.capacity() * sizeof(std::int32_t) +
+               t.model->locations.capacity() * sizeof(ObjectLocation);
+  }
+  // The id map: a node per target (key, slot, hash and links).
+  bytes += im.by_id.size() * (sizeof(std::string) + sizeof(std::uint32_t) + 3 * sizeof(void*)) +
+           im.by_id.bucket_count() * sizeof(void*);
+  for (const auto& id : ids_) bytes += sizeof(std::string) + id.capacity();
   return bytes;
+}
+
+std::size_t Recognizer::shared_bytes() const {
+  const Impl& im = *impl_;
+  return (im.vocab ? im.vocab->memory_bytes() : 0) + im.lists.capacity() * sizeof(std::vector<Posting>);
 }
 
 }  // namespace mvkp

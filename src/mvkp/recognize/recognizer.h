@@ -1,25 +1,30 @@
 // Multi-target recognition (thesis ch. 6, SPEC §8): which of many trained
 // targets are in a frame, if any.
 //
-// One search index holds the k-means centres of ALL targets, each labelled
-// with a global location id (the target's location offset + its location).
-// Per frame the query features are extracted once, with the feature settings
-// every target shares; each descriptor gets its nearest centre and the nearest
-// centre of a DIFFERENT location (possibly of another target, so a point that
-// looks like two targets is dropped by the ratio test); the surviving matches
-// vote for their target. Up to max_candidates targets with at least min_votes
-// votes (most votes first) are verified by a robust homography over their own
+// Two searches, both ending in the same verification:
+//
+// kWords (what scales to 10 000 targets). Each target is stored
+// compactly: its most stable object locations (RecognizerOptions::
+// max_locations), and for each location the few visual words its k-means
+// centres fall in most often (words_per_location), each with a Hamming
+// signature (vocabulary.h). The postings (target, location, signature) of all
+// targets sit in one inverted file, one list per word, so adding or removing a
+// target touches only its own postings. Per frame each query descriptor is
+// quantised to its nearest word(s); every posting of those words within
+// max_hamming signature bits is a tentative correspondence and a vote for its
+// target (one per query point per target).
+//
+// kExact (the thesis's design; the default, best recall on small sets). One FFVA index
+// holds the k-means centres of ALL targets, labelled by global location; each
+// query descriptor gets its nearest centre and the nearest centre of a
+// DIFFERENT location, and the ratio test decides whether it votes.
+//
+// Verification: up to max_candidates targets with at least min_votes votes
+// (most votes first) are verified by a robust homography over their own
 // correspondences, as Matcher does (same estimator, plausible-outline check,
 // fixed RNG state, so results are deterministic); those with >= min_inliers
-// inliers are reported, most inliers first. Several targets can be found in
-// one frame; "no target" is an empty `found`.
-//
-// Not yet done (Matcher has them, the recogniser ignores the options):
-// the half-resolution retry (MatchOptions::half_res_points /
-// retry_below_inliers), the dynamic ratio (dynamic_goal, ratio_min/max) and
-// per-target dynamic thresholds, temporal tracking over video, and the
-// two-stage shortlist that SPEC §8 needs for ~1000 targets.
-// MatchOptions::min_inliers is replaced by RecognizerOptions::min_inliers.
+// inliers (distinct query points) are reported, most inliers first. Several
+// targets can be found in one frame; "no target" is an empty `found`.
 #pragma once
 
 #include <array>
@@ -33,14 +38,31 @@
 
 #include <opencv2/core.hpp>
 
+#include "mvkp/describe/features.h"
 #include "mvkp/index/knn_index.h"
 #include "mvkp/match/matcher.h"
 #include "mvkp/model/model.h"
+#include "mvkp/recognize/vocabulary.h"
 
 namespace mvkp {
 
+enum class RecognizerSearch { kWords, kExact };
+
 struct RecognizerOptions {
-  MatchOptions match;      // query points, ratio, geometry, robust estimator, RANSAC threshold, index kind
+  MatchOptions match;      // query points, geometry, robust estimator, RANSAC threshold; kExact: ratio and index kind
+  // kExact is the default: better recall per frame on tens to hundreds of
+  // targets; kWords for thousands (speed and memory; see the README's table).
+  RecognizerSearch search = RecognizerSearch::kExact;
+  // kWords: how a target is stored (applied at Add) ...
+  int max_locations = 150;      // most stable object locations kept per target (<= 256)
+  int words_per_location = 5;   // postings per location: the words its centres fall in most often
+  // ... and searched.
+  int query_words = 2;          // nearest words looked up per query descriptor
+  int max_hamming = 6;          // signature bits (of 20) that may differ for a tentative correspondence
+  // Keep each target's full model so RecognizeOne can use the target's own
+  // Matcher (its exact index, half-resolution retry): about 300 KB per target
+  // instead of a few KB. kExact always keeps the models.
+  bool keep_models = false;
   int max_candidates = 5;  // targets verified per frame, most votes first
   int min_votes = 8;       // ratio-test matches a target needs to be verified
   int min_inliers = 12;    // RANSAC inliers to accept a target
@@ -66,64 +88,69 @@ struct RecognitionResult {
   double total_ms() const { return detect_ms + describe_ms + search_ms + verify_ms; }
 };
 
-// Cost: Add and Remove only store/drop the model (O(model) copy); the index
-// over all targets is rebuilt lazily, once, on the next Recognize (or
-// memory_bytes) after a change — an FFVA build, O(N log N) in the total number
-// of centres (a few ms for tens of targets). So adding many targets and then
-// recognising builds once.
+// Cost (kWords): Add encodes the model (a few ms) and appends its postings;
+// Remove erases them (a pass over the inverted file). kExact: Add and Remove
+// only store/drop the model; the index over all targets is rebuilt lazily, once,
+// on the next Recognize (or memory_bytes) after a change.
 //
-// Thread safety: concurrent Recognize calls are safe (the lazy build is
-// guarded by a mutex); Add/Remove must not run concurrently with anything.
+// Thread safety: concurrent Recognize / RecognizeOne calls are safe (lazy
+// builds are guarded by a mutex); Add/Remove must not run concurrently with
+// anything.
 class Recognizer {
  public:
-  explicit Recognizer(const RecognizerOptions& options = {});
+  // kWords uses `vocabulary` (DefaultVocabulary() if null; it must outlive the
+  // recogniser) whose dims must equal the models'.
+  explicit Recognizer(const RecognizerOptions& options = {}, const Vocabulary* vocabulary = nullptr);
   ~Recognizer();
   Recognizer(Recognizer&&) noexcept;
   Recognizer& operator=(Recognizer&&) noexcept;
 
-  // Copies the model. Throws Error(kInvalidArgument) for an empty or duplicate
-  // id, or if the model's query-side feature settings (smooth_sigma,
-  // patch_size, dims, orient, orientation_radius, detector thresholds) differ
-  // from those of the targets already added; Error(kBadModel) for an
-  // inconsistent model. Targets keep their order of addition.
+  // Encodes (kWords) or copies (kExact) the model. Throws
+  // Error(kInvalidArgument) for an empty or duplicate id, or if the model's
+  // query-side feature settings (smooth_sigma, patch_size, dims, orient,
+  // orientation_radius, detector thresholds) differ from those of the targets
+  // already added or (kWords) its dims from the vocabulary's;
+  // Error(kBadModel) for an inconsistent model. Targets keep their order of
+  // addition in ids().
   void Add(const std::string& id, const Model& model);
   // False if there is no such id.
   bool Remove(const std::string& id);
   bool Contains(const std::string& id) const;
-  std::size_t size() const { return targets_.size(); }
-  std::vector<std::string> ids() const;
+  std::size_t size() const { return ids_.size(); }
+  std::vector<std::string> ids() const { return ids_; }
   const RecognizerOptions& options() const { return options_; }
 
   // Finds the targets in an 8-bit grayscale frame (Error(kInvalidArgument)
   // otherwise). With no targets, returns an empty result without looking.
   RecognitionResult Recognize(const cv::Mat& gray) const;
 
-  // Temporal focus (thesis §6.3.1): looks for one target only, with that
-  // target's own Matcher (its own small index, the half-resolution retry);
-  // much cheaper than Recognize when the target is known to be in view.
-  // Throws Error(kInvalidArgument) for an unknown id. The Matcher is built on
-  // first use and kept.
+  // Temporal focus (thesis §6.3.1): looks for one target only; cheaper than
+  // Recognize and more sensitive (that target's votes need not stand out
+  // among others'). With the full model kept (kExact, or keep_models) it uses
+  // the target's own Matcher, built on first use and kept; otherwise only
+  // that target's postings. Throws Error(kInvalidArgument) for an unknown id.
   RecognitionResult RecognizeOne(const cv::Mat& gray, const std::string& id) const;
 
-  // Bytes held: the index (with its copy of the centres) plus the models.
+  // Bytes held for the targets: postings, locations, ids, kept models and
+  // (kExact) the index. The shared vocabulary is not included: see
+  // shared_bytes().
   std::size_t memory_bytes() const;
+  // Bytes shared by all targets whatever their number (the vocabulary and the
+  // inverted file's per-word headers).
+  std::size_t shared_bytes() const;
+  // Releases the inverted file's spare capacity (kWords); call after a bulk
+  // load, since lists grow geometrically while targets are added.
+  void ShrinkToFit();
 
  private:
-  struct Target {
-    std::string id;
-    Model model;
-  };
-  void EnsureIndex() const;
+  struct Impl;
+  // Both searches; only_slot >= 0 restricts kWords to one target (focus).
+  RecognitionResult Search(const cv::Mat& gray, std::int64_t only_slot, const RecognizerOptions& o) const;
+  void VoteAndVerify(const Features& f, std::int64_t only_slot, const RecognizerOptions& o, RecognitionResult& r) const;
 
+  std::unique_ptr<Impl> impl_;
   RecognizerOptions options_;
-  std::vector<Target> targets_;
-  // Built lazily from targets_ (see above).
-  mutable std::unique_ptr<std::mutex> mutex_;
-  mutable std::unique_ptr<KnnIndex> index_;
-  mutable bool dirty_ = true;
-  mutable std::vector<std::int32_t> label_target_;    // global location id -> target index
-  mutable std::vector<std::int32_t> target_offset_;   // target index -> first global location id
-  mutable std::map<std::string, std::shared_ptr<const Matcher>> focus_;  // RecognizeOne's matchers
+  std::vector<std::string> ids_;  // order of addition
 };
 
 }  // namespace mvkp
