@@ -41,6 +41,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/core/atomic_file.h"
 #include "mvkp/core/error.h"
 #include "mvkp/match/matcher.h"
 #include "mvkp/model/model.h"
@@ -227,7 +228,20 @@ int main(int argc, char** argv) {
   app.add_option("--views", views, "TrainOptions::views")->capture_default_str();
   app.add_option("--locations", locations, "TrainOptions::locations")->capture_default_str();
   app.add_option("--clusters", clusters, "TrainOptions::clusters")->capture_default_str();
-  app.add_option("--index", index, "recogniser search index: exact | approx | brute")->capture_default_str();
+  app.add_option("--index", index, "--search exact: index kind, exact | approx | brute")->capture_default_str();
+  std::string search = "words", vocab_file;
+  RecognizerOptions ro_base;
+  app.add_option("--search", search, "words (inverted file, default) | exact (all centres in one FFVA index)")
+      ->check(CLI::IsMember({"words", "exact"}))
+      ->capture_default_str();
+  app.add_option("--vocab", vocab_file, "vocabulary file (default: the built-in one)");
+  app.add_option("--max-locations", ro_base.max_locations, "words: locations kept per target")->capture_default_str();
+  app.add_option("--words-per-location", ro_base.words_per_location, "words: postings per location")->capture_default_str();
+  app.add_option("--max-hamming", ro_base.max_hamming, "words: signature bits that may differ")->capture_default_str();
+  app.add_option("--query-words", ro_base.query_words, "words: nearest words per query descriptor")->capture_default_str();
+  app.add_option("--min-inliers", ro_base.min_inliers, "inliers to accept a target")->capture_default_str();
+  app.add_option("--min-votes", ro_base.min_votes, "votes to verify a target")->capture_default_str();
+  app.add_option("--max-candidates", ro_base.max_candidates, "targets verified per frame")->capture_default_str();
   app.add_option("--max-corner-error", max_corner_error, "px, for a correct recognition")->capture_default_str();
   app.add_option("--threads", threads, "cv::setNumThreads")->capture_default_str();
   app.add_option("--samples", samples_dir, "directory of the sample photos (*.jpg)")->capture_default_str();
@@ -239,6 +253,11 @@ int main(int argc, char** argv) {
   app.add_option("--dump", dump_dir, "write the first 20 targets and a frame of each kind here (PNG)");
   app.add_flag("--large", large, "allow sizes above 1000 (training takes hours)");
   CLI11_PARSE(app, argc, argv);
+  Vocabulary vocab;
+  if (!vocab_file.empty()) {
+    const auto bytes = ReadFileBytes(vocab_file);
+    vocab = Vocabulary::Deserialize(bytes.data(), bytes.size(), vocab_file);
+  }
 
   try {
     if (sizes.empty()) throw CLI::ValidationError("--sizes", "empty");
@@ -347,6 +366,14 @@ int main(int argc, char** argv) {
                       {"frame_size", {640, 480}},
                       {"max_corner_error", max_corner_error},
                       {"index", index},
+                      {"search", search},
+                      {"words", {{"vocabulary", vocab.empty() ? DefaultVocabulary().size() : vocab.size()},
+                                 {"max_locations", ro_base.max_locations},
+                                 {"words_per_location", ro_base.words_per_location},
+                                 {"max_hamming", ro_base.max_hamming},
+                                 {"query_words", ro_base.query_words}}},
+                      {"min_inliers", ro_base.min_inliers},
+                      {"min_votes", ro_base.min_votes},
                       {"train", {{"views", views}, {"locations", locations}, {"clusters", clusters},
                                  {"rotation_views", to.rotation_views}, {"points_per_view", to.points_per_view},
                                  {"select", SelectionName(to.select)}}},
@@ -364,14 +391,16 @@ int main(int argc, char** argv) {
               "mem/tgt", "ser/tgt", "train_ms", "add_ms", "build_ms", "kpts", "match", "cand");
 
   for (int n : sizes) {
-    RecognizerOptions ro;
+    RecognizerOptions ro = ro_base;
     ro.match.index = index;
-    Recognizer rec(ro);
+    ro.search = search == "exact" ? RecognizerSearch::kExact : RecognizerSearch::kWords;
+    Recognizer rec(ro, vocab.empty() ? nullptr : &vocab);
     const auto ta = Clock::now();
     for (int i = 0; i < n; ++i) rec.Add(targets[std::size_t(i)].id, targets[std::size_t(i)].model);
     const double add_ms = MsSince(ta);
     const auto tb = Clock::now();
-    const std::size_t mem = rec.memory_bytes();  // builds the index
+    rec.ShrinkToFit();
+    const std::size_t mem = rec.memory_bytes();  // builds the index (exact)
     const double build_ms = MsSince(tb);
     double train_sum = 0, ser_sum = 0, centres = 0, locs = 0;
     for (int i = 0; i < n; ++i) {
