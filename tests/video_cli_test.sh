@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # End-to-end tests of `mvkp video`: a generated clip of a database target
-# moving smoothly over clutter is followed with temporal focus (found, with the
-# right outline, in >= 95 % of the frames that show it; nothing reported once
-# it is gone), the annotated video is written, and bad sources fail cleanly.
+# moving smoothly over clutter is followed with KLT tracking between
+# detections (the default), with temporal focus alone (--track none) and with
+# a full search on every frame (found, with the right outline, in >= 95 % of
+# the frames that show it; nothing reported once it is gone); the JSON modes
+# and summary agree; the annotated video is written; bad sources and options
+# fail cleanly.
 #
 # Run by CTest with MVKP=<mvkp binary> and SAMPLES=<repo>/samples; needs
 # /usr/bin/python3 with numpy and cv2 (scripts/install-deps.sh) for the clip.
@@ -20,12 +23,16 @@ DB=$T/v.db
 "$MVKP" db add "$DB" --id starry --image "$SAMPLES/starry_night.jpg" --title "The Starry Night" >/dev/null
 "$MVKP" db add "$DB" --id coffee --image "$SAMPLES/coffee.jpg" >/dev/null
 
-for mode in focus no-focus; do
+for mode in klt focus no-focus klt-5; do
   flag=()
-  [[ $mode == no-focus ]] && flag=(--no-focus)
+  [[ $mode == focus ]] && flag=(--track none)
+  [[ $mode == no-focus ]] && flag=(--no-focus --track none)
+  [[ $mode == klt-5 ]] && flag=(--track klt --redetect-every 5)
   expect_ok "video --json ($mode)" "$MVKP" video "$DB" "$T/clip.avi" --json -o "$T/out-$mode.mp4" "${flag[@]}"
-  check "video ($mode): found with the right outline in >= 95% of visible frames, nothing once gone" $PY - "$T/out" "$T/clip.avi.H.txt" <<'PYEOF'
+  cp "$T/out" "$T/json-$mode"
+  check "video ($mode): found with the right outline in >= 95% of visible frames, nothing once gone" $PY - "$T/out" "$T/clip.avi.H.txt" "$mode" <<'PYEOF'
 import json, sys
+mode = sys.argv[3]
 lines = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
 frames = [l for l in lines if "frame" in l]
 hs = [l.split() for l in open(sys.argv[2])]
@@ -47,12 +54,41 @@ for f, hline in zip(frames, hs):
     if hit:
         err = sum(((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5 for a, b in zip(hit[0]["outline"], truth)) / 4
         ok += err < 5
-summary = [l for l in lines if "summary" in l]
-print(f"{ok}/{visible} visible frames within 5 px, {false_pos} false detections")
-sys.exit(0 if summary and visible == 40 and ok >= 0.95 * visible and false_pos == 0 else 1)
+summary = [l["summary"] for l in lines if "summary" in l]
+modes = [f["mode"] for f in frames]
+good = bool(summary) and visible == 40 and ok >= 0.95 * visible and false_pos == 0
+# Modes: the first frame is a full search; tracking only with klt, and the
+# summary counts agree with the frames.
+good = good and modes[0] == "full" and set(modes) <= {"full", "focus", "track"}
+good = good and summary[0]["tracked_frames"] == modes.count("track") and summary[0]["focus_frames"] == modes.count("focus")
+if mode.startswith("klt"):
+    # Most visible frames are tracked; the recogniser still checks every N frames.
+    n = 5 if mode == "klt-5" else 10
+    good = good and modes[:40].count("track") >= 25 and modes[:40].count("focus") >= 40 // (n + 1) - 1
+    good = good and summary[0]["track"] == "klt"
+    good = good and all(x["tracked"] for f in frames if f["mode"] == "track" for x in f["found"][:1])
+    # Longest run of tracked frames is bounded by --redetect-every.
+    run = best = 0
+    for m in modes:
+        run = run + 1 if m == "track" else 0
+        best = max(best, run)
+    good = good and best <= n
+else:
+    good = good and "track" not in modes and summary[0]["track"] == "none"
+print(f"{ok}/{visible} visible frames within 5 px, {false_pos} false detections, modes " +
+      ", ".join(f"{m} {modes.count(m)}" for m in ("full", "focus", "track")))
+sys.exit(0 if good else 1)
 PYEOF
   check "annotated video written ($mode)" test -s "$T/out-$mode.mp4"
 done
+
+# The human summary names the tracked frames (the klt run above used no --track: the default).
+expect_ok "video (text summary)" "$MVKP" video "$DB" "$T/clip.avi"
+check "video: text summary counts tracked frames" grep -qE '[1-9][0-9]* tracked\)' "$T/out"
+
+# Bad options.
+expect_fail "video: bad --track" "--track" "$MVKP" video "$DB" "$T/clip.avi" --track lk
+expect_fail "video: negative --redetect-every" "redetect" "$MVKP" video "$DB" "$T/clip.avi" --redetect-every -1
 
 # Bad sources.
 expect_fail "video: missing file" "$T/none.avi" "$MVKP" video "$DB" "$T/none.avi"

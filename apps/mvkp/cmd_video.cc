@@ -1,6 +1,9 @@
 // mvkp video DB VIDEO|CAMERA_INDEX: recognition over a video with temporal
 // focus (thesis §6.3.1): once a target is found, the next frames look for
 // that target alone and return to the full search after N consecutive misses.
+// With --track klt the frames between detections are answered by optical-flow
+// tracking (mvkp/track), checked by the recogniser every --redetect-every
+// frames and whenever tracking fails (VideoFollower).
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -17,6 +20,7 @@
 #include "mvkp/db/target_store.h"
 #include "mvkp/model/model.h"
 #include "mvkp/recognize/recognizer.h"
+#include "mvkp/track/follower.h"
 #include "output.h"
 #include "pose_cli.h"
 
@@ -29,20 +33,33 @@ struct VideoArgs {
   int lose_after = 3;     // consecutive misses of the focused target before the full search
   int max_frames = 0;     // 0: all
   bool no_focus = false;  // full search on every frame (for comparison)
+  std::string track = "klt";  // klt | none
+  int redetect_every = TrackerOptions{}.redetect_every;
   PoseSupport pose;       // --camera, --width-m
 };
 
 int RunVideo(VideoArgs& a) {
   Require(a.lose_after >= 1, ErrorCode::kInvalidArgument, "--lose-after must be >= 1");
+  Require(a.track == "klt" || a.track == "none", ErrorCode::kInvalidArgument,
+          "--track must be klt or none, not '" + a.track + "'");
+  Require(a.redetect_every >= 0, ErrorCode::kInvalidArgument, "--redetect-every must be >= 0");
+  FollowerOptions fo;
+  fo.focus = !a.no_focus;
+  fo.lose_after = a.lose_after;
+  fo.track = a.track == "klt";
+  fo.tracker.redetect_every = a.redetect_every;
+  fo.Check();
   a.pose.Load();  // a bad --camera file fails before any work
   Timer load;
   const TargetStore store = TargetStore::Open(a.db);
   std::map<std::string, std::string> titles;
   Recognizer rec;
+  std::map<std::string, cv::Size> sizes;
   for (const auto& t : store.LoadAll()) {
     const Model model = DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'");
     a.pose.AddTarget(t.info.id, t.info.meta, model.object_width, model.object_height, a.db);
     rec.Add(t.info.id, model);
+    sizes[t.info.id] = cv::Size(model.object_width, model.object_height);
     titles[t.info.id] = t.info.title.empty() ? t.info.id : t.info.title;
   }
   Require(rec.size() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
@@ -55,8 +72,9 @@ int RunVideo(VideoArgs& a) {
   Require(cap.isOpened(), ErrorCode::kIo,
           camera ? "camera " + a.source + ": cannot be opened" : a.source + ": cannot open video");
   cv::VideoWriter writer;
-  std::string focus;
-  int misses = 0, frames = 0, found_frames = 0, focus_frames = 0, lost = 0;
+  VideoFollower follower(rec, fo);
+  for (const auto& [id, size] : sizes) follower.SetObjectSize(id, size);
+  int frames = 0, found_frames = 0, focus_frames = 0, tracked_frames = 0, lost = 0;
   bool seen = false, prev_found = false;
   std::vector<double> ms;
   cv::Mat frame, gray;
@@ -64,36 +82,32 @@ int RunVideo(VideoArgs& a) {
     if (frame.channels() == 3) cv::cvtColor(frame, gray, cv::COLOR_BGR2GRAY);
     else if (frame.channels() == 4) cv::cvtColor(frame, gray, cv::COLOR_BGRA2GRAY);
     else gray = frame;
-    const bool focused = !focus.empty() && !a.no_focus;
     if (a.pose.enabled()) a.pose.Camera(gray.size(), a.source);  // another aspect ratio: an error before any work
-    const RecognitionResult r = focused ? rec.RecognizeOne(gray, focus) : rec.Recognize(gray);
+    const FollowedFrame r = follower.Process(gray);
     std::vector<std::optional<Pose>> poses;
     for (const auto& x : r.found) poses.push_back(a.pose.Estimate(x, gray.size(), a.source));
-    const double t = r.total_ms();
+    const double t = r.ms;  // wall clock: recogniser and tracker
     ms.push_back(t);
     const bool found = !r.found.empty();
     if (found) {
-      focus = r.found.front().id;
-      misses = 0;
       ++found_frames;
       seen = true;
-    } else if (focused && ++misses >= a.lose_after) {
-      focus.clear();
-      misses = 0;
     }
     if (seen && prev_found && !found) ++lost;
     prev_found = found;
-    focus_frames += focused;
+    focus_frames += r.mode == FrameMode::kFocus;
+    tracked_frames += r.mode == FrameMode::kTrack;
     if (a.json) {
       nlohmann::json f = nlohmann::json::array();
       for (std::size_t k = 0; k < r.found.size(); ++k) {
         const Recognition& x = r.found[k];
         nlohmann::json outline = nlohmann::json::array();
         for (const auto& p : x.outline) outline.push_back({p.x, p.y});
-        f.push_back({{"id", x.id}, {"title", titles[x.id]}, {"outline", outline}, {"inliers", x.inliers}});
+        f.push_back({{"id", x.id}, {"title", titles[x.id]}, {"outline", outline}, {"inliers", x.inliers},
+                     {"tracked", k == 0 && r.tracked}});
         if (poses[k]) f.back()["pose"] = PoseSupport::Json(*poses[k]);
       }
-      std::cout << nlohmann::json{{"frame", frames}, {"mode", focused ? "focus" : "full"}, {"found", f}, {"time_ms", t}}.dump()
+      std::cout << nlohmann::json{{"frame", frames}, {"mode", FrameModeName(r.mode)}, {"found", f}, {"time_ms", t}}.dump()
                 << "\n";
     }
     if (!a.output.empty()) {
@@ -128,6 +142,8 @@ int RunVideo(VideoArgs& a) {
   const nlohmann::json summary = {{"frames", frames},
                                   {"found_frames", found_frames},
                                   {"focus_frames", focus_frames},
+                                  {"tracked_frames", tracked_frames},
+                                  {"track", a.track},
                                   {"lost_after_found", lost},
                                   {"median_ms", sorted[sorted.size() / 2]},
                                   {"mean_ms", mean},
@@ -136,10 +152,10 @@ int RunVideo(VideoArgs& a) {
                                   {"load_ms", load_ms}};
   if (a.json) std::cout << nlohmann::json{{"summary", summary}}.dump() << std::endl;
   else
-    std::printf("%d frames: target found in %d (%d searched with focus), lost %d times after being found; "
+    std::printf("%d frames: target found in %d (%d searched with focus, %d tracked), lost %d times after being found; "
                 "%.2f ms median, %.2f mean, %.2f max per frame (%zu targets, loaded in %.0f ms)\n",
-                frames, found_frames, focus_frames, lost, sorted[sorted.size() / 2], mean, sorted.back(), rec.size(),
-                load_ms);
+                frames, found_frames, focus_frames, tracked_frames, lost, sorted[sorted.size() / 2], mean, sorted.back(),
+                rec.size(), load_ms);
   return 0;
 }
 
@@ -155,6 +171,10 @@ void RegisterVideo(CLI::App& app, int* code) {
   c->add_option("--lose-after", a->lose_after, "misses of the focused target before the full search")->capture_default_str();
   c->add_option("--max-frames", a->max_frames, "stop after this many frames (0: all)")->capture_default_str();
   c->add_flag("--no-focus", a->no_focus, "full search on every frame");
+  c->add_option("--track", a->track, "between detections: klt (optical-flow tracking) or none")->capture_default_str();
+  c->add_option("--redetect-every", a->redetect_every,
+                "--track klt: run the recogniser every N tracked frames to correct drift (0: only when tracking fails)")
+      ->capture_default_str();
   a->pose.AddOptions(c);
   c->callback([a, code] { *code = RunVideo(*a); });
 }

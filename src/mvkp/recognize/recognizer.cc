@@ -217,6 +217,36 @@ bool VerifyTarget(const std::vector<Vote>& votes, int width, int height, const R
   return true;
 }
 
+// Indices of the postings within max_hamming bits of `signature`, written to
+// `out` (room for list.size()); returns their number. Branch-free, and built
+// twice by GCC (with the POPCNT instruction and without, chosen at load time
+// by CPU), since this loop is most of a frame's search at thousands of targets.
+#if defined(__GNUC__) && defined(__x86_64__) && !defined(__clang__)
+__attribute__((target_clones("popcnt", "default")))
+#endif
+std::size_t FilterPostings(const Posting* list, std::size_t size, std::uint32_t signature, int max_hamming,
+                           std::uint32_t* out) {
+  std::size_t m = 0;
+  for (std::size_t x = 0; x < size; ++x) {
+    out[m] = std::uint32_t(x);
+    m += std::popcount(list[x].signature ^ signature) <= max_hamming;
+  }
+  return m;
+}
+
+// Targets with enough votes to be verified and to reach min_inliers, best
+// score first, at most max_candidates.
+std::vector<std::uint32_t> Candidates(const std::vector<int>& count, const std::vector<float>& score,
+                                      const RecognizerOptions& o) {
+  const int need = std::max(o.min_votes, o.min_inliers);
+  std::vector<std::uint32_t> cand;
+  for (std::uint32_t s = 0; s < count.size(); ++s)
+    if (count[s] >= need) cand.push_back(s);
+  std::stable_sort(cand.begin(), cand.end(), [&](std::uint32_t a, std::uint32_t b) { return score[a] > score[b]; });
+  if (int(cand.size()) > o.max_candidates) cand.resize(std::size_t(o.max_candidates));
+  return cand;
+}
+
 }  // namespace
 
 Recognizer::Recognizer(const RecognizerOptions& options, const Vocabulary* vocabulary)
@@ -413,7 +443,8 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
   r.keypoints = int(f.keypoints.size());
   Timer ts;
   const std::size_t n = f.keypoints.size();
-  std::vector<std::vector<Vote>> votes(im.slots.size());
+  std::vector<std::vector<Vote>> votes;  // per candidate
+  std::vector<std::uint32_t> cand;       // candidate slots, best first
   std::vector<int> count(im.slots.size(), 0);
   std::vector<float> score(im.slots.size(), 0.f);  // candidate ranking
   if (words && n > 0) {
@@ -430,45 +461,71 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
     // Per query point and target, only the best-agreeing postings (fewest
     // differing signature bits, at most two) become correspondences: the
     // others are mostly wrong and would drown RANSAC's inlier ratio.
-    struct Hit {
-      std::uint32_t slot;
-      int h;
-      std::uint32_t slot_loc;
-    };
-    std::vector<Hit> hits;
-    for (std::size_t i = 0; i < n; ++i) {
-      const cv::Point2f q(f.keypoints[i].x, f.keypoints[i].y);
-      hits.clear();
-      for (int j = 0; j < k; ++j) {
-        const WordAssignment& a = qa[i * std::size_t(k) + std::size_t(j)];
-        if (a.word < 0) continue;
-        for (const Posting& p : im.lists[std::size_t(a.word)]) {
-          const int h = std::popcount(p.signature ^ a.signature);
-          if (h > o.max_hamming) continue;
-          const std::uint32_t slot = p.slot_loc >> 8;
-          if (only_slot >= 0 && slot != std::uint64_t(only_slot)) continue;
-          hits.push_back({slot, h, p.slot_loc});
+    // Two passes over the same postings: the first only counts votes (per
+    // target state, no allocation), the second collects correspondences for
+    // the candidates alone, since at thousands of targets almost all hits
+    // are chance and storing them would cost more than scanning twice.
+    std::vector<std::int32_t> stamp(im.slots.size(), -1);
+    std::vector<std::uint8_t> best_h(im.slots.size());
+    std::vector<std::uint32_t> loc1(im.slots.size()), loc2(im.slots.size());
+    std::vector<std::uint32_t> touched, passing;
+    auto scan = [&](const std::vector<std::int32_t>* cand_index) {
+      std::fill(stamp.begin(), stamp.end(), -1);
+      for (std::size_t i = 0; i < n; ++i) {
+        touched.clear();
+        for (int j = 0; j < k; ++j) {
+          const WordAssignment& a = qa[i * std::size_t(k) + std::size_t(j)];
+          if (a.word < 0) continue;
+          const auto& list = im.lists[std::size_t(a.word)];
+          if (passing.size() < list.size()) passing.resize(list.size());
+          const std::size_t m = FilterPostings(list.data(), list.size(), a.signature, o.max_hamming, passing.data());
+          for (std::size_t x = 0; x < m; ++x) {
+            const Posting& p = list[passing[x]];
+            const int h = std::popcount(p.signature ^ a.signature);
+            const std::uint32_t slot = p.slot_loc >> 8;
+            if (only_slot >= 0 && slot != std::uint64_t(only_slot)) continue;
+            if (cand_index && (*cand_index)[slot] < 0) continue;
+            const std::uint32_t loc = p.slot_loc & 0xff;
+            if (stamp[slot] != std::int32_t(i)) {
+              stamp[slot] = std::int32_t(i);
+              best_h[slot] = std::uint8_t(h);
+              loc1[slot] = loc;
+              loc2[slot] = 0xffffffffu;
+              touched.push_back(slot);
+            } else if (h < best_h[slot]) {
+              best_h[slot] = std::uint8_t(h);
+              loc1[slot] = loc;
+              loc2[slot] = 0xffffffffu;
+            } else if (h == best_h[slot] && loc2[slot] == 0xffffffffu && loc != loc1[slot]) {
+              loc2[slot] = loc;
+            }
+          }
+        }
+        const cv::Point2f q(f.keypoints[i].x, f.keypoints[i].y);
+        for (std::uint32_t slot : touched) {
+          if (!cand_index) {
+            ++count[slot];
+            ++r.matches;
+            score[slot] += weight[best_h[slot]];
+            continue;
+          }
+          auto& v = votes[std::size_t((*cand_index)[slot])];
+          v.push_back({im.slots[slot].location(int(loc1[slot])), q, int(i)});
+          if (loc2[slot] != 0xffffffffu) v.push_back({im.slots[slot].location(int(loc2[slot])), q, int(i)});
         }
       }
-      std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
-        return a.slot != b.slot ? a.slot < b.slot : a.h != b.h ? a.h < b.h : a.slot_loc < b.slot_loc;
-      });
-      for (std::size_t b = 0; b < hits.size();) {
-        std::size_t e = b;
-        while (e < hits.size() && hits[e].slot == hits[b].slot) ++e;
-        const std::uint32_t slot = hits[b].slot;
-        for (std::size_t x = b; x < e && x < b + 2 && hits[x].h == hits[b].h; ++x)
-          votes[slot].push_back({im.slots[slot].location(int(hits[x].slot_loc & 0xff)), q, int(i)});
-        ++count[slot];
-        ++r.matches;
-        score[slot] += weight[std::size_t(hits[b].h)];
-        b = e;
-      }
-    }
+    };
+    scan(nullptr);
+    cand = Candidates(count, score, o);
+    std::vector<std::int32_t> cand_index(im.slots.size(), -1);
+    for (std::size_t c = 0; c < cand.size(); ++c) cand_index[cand[c]] = std::int32_t(c);
+    votes.assign(cand.size(), {});
+    if (!cand.empty()) scan(&cand_index);
   } else if (n > 0 && im.index) {
     // Nearest centre and nearest centre of another location (of any target),
     // ratio test on L2 distances; each kept match votes for its target.
     std::vector<Neighbor> nn(2 * n);
+    std::vector<std::vector<Vote>> by_slot(im.slots.size());
     const float ratio = o.match.ratio;
     im.index->SearchTwoDistinctBatch(f.descriptors.ptr<float>(0), n, nn.data(), ratio);
     for (std::size_t i = 0; i < n; ++i) {
@@ -480,27 +537,23 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
       if (!(d1 < ratio * d2)) continue;
       const std::uint32_t slot = im.label_slot[std::size_t(a.label)];
       const auto& loc = im.slots[slot].model->locations[std::size_t(im.label_loc[std::size_t(a.label)])];
-      votes[slot].push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)});
+      by_slot[slot].push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)});
       ++count[slot];
       score[slot] += 1.f;
       ++r.matches;
     }
+    cand = Candidates(count, score, o);
+    for (std::uint32_t c : cand) votes.push_back(std::move(by_slot[c]));
   }
   r.search_ms = ts.ElapsedMs();
 
-  // Candidates: enough votes to be verified and to reach min_inliers; most votes first.
   Timer tv;
-  const int need = std::max(o.min_votes, o.min_inliers);
-  std::vector<std::uint32_t> cand;
-  for (std::uint32_t s = 0; s < im.slots.size(); ++s)
-    if (count[s] >= need) cand.push_back(s);
-  std::stable_sort(cand.begin(), cand.end(), [&](std::uint32_t a, std::uint32_t b) { return score[a] > score[b]; });
-  if (int(cand.size()) > o.max_candidates) cand.resize(std::size_t(o.max_candidates));
   r.candidates = int(cand.size());
-  for (std::uint32_t s : cand) {
+  for (std::size_t c = 0; c < cand.size(); ++c) {
+    const std::uint32_t s = cand[c];
     const Impl::Target& t = im.slots[s];
     Recognition rec;
-    if (VerifyTarget(votes[s], t.width, t.height, o, o.min_inliers, rec)) {
+    if (VerifyTarget(votes[c], t.width, t.height, o, o.min_inliers, rec)) {
       rec.id = t.id;
       rec.votes = count[s];
       rec.score = std::min(1.0, double(rec.inliers) / double(count[s]));
