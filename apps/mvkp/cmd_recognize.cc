@@ -151,7 +151,15 @@ void RegisterRecognize(CLI::App& app, int* code) {
   a->pose.AddOptions(c);
   MatchOptions& m = a->opt.match;
   c->add_option("--ratio", m.ratio, "distance-ratio threshold d1/d2")->capture_default_str();
+  c->add_option("--dynamic-goal", m.dynamic_goal,
+                "per-target dynamic ratio (thesis 6.3.1): keep each target's best matches up to --ratio-max until it "
+                "has this many (those under --ratio-min always count); 0: the fixed --ratio")
+      ->capture_default_str();
+  c->add_option("--ratio-min", m.ratio_min, "dynamic ratio: matches under it always count")->capture_default_str();
+  c->add_option("--ratio-max", m.ratio_max, "dynamic ratio: no match above it counts")->capture_default_str();
   c->add_option("--max-points", m.max_points, "strongest query points")->capture_default_str();
+  c->add_option("--half-res-points", m.half_res_points, "extra points from half resolution when nothing is found (0: off)")
+      ->capture_default_str();
   c->add_option("--ransac-threshold", m.ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
   c->add_flag("--affine", a->affine, "fit an affine transform instead of a homography");
   c->add_option("--index", m.index, "descriptor search: exact (FFVA) | approx | brute")

@@ -524,9 +524,19 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
   } else if (n > 0 && im.index) {
     // Nearest centre and nearest centre of another location (of any target),
     // ratio test on L2 distances; each kept match votes for its target.
+    // With match.dynamic_goal > 0 each target gets its own ratio (thesis
+    // §6.3.1, "dynamic threshold"): its matches up to ratio_min always count,
+    // then the next best by ratio, up to ratio_max, until it has dynamic_goal
+    // of them. A plain painting then keeps enough correspondences and a
+    // textured one is not flooded.
+    const bool dynamic = o.match.dynamic_goal > 0;
+    const float ratio = dynamic ? o.match.ratio_max : o.match.ratio;
     std::vector<Neighbor> nn(2 * n);
-    std::vector<std::vector<Vote>> by_slot(im.slots.size());
-    const float ratio = o.match.ratio;
+    struct Ranked {
+      float ratio;
+      Vote vote;
+    };
+    std::vector<std::vector<Ranked>> by_slot(im.slots.size());
     im.index->SearchTwoDistinctBatch(f.descriptors.ptr<float>(0), n, nn.data(), ratio);
     for (std::size_t i = 0; i < n; ++i) {
       const Neighbor& a = nn[2 * i];
@@ -537,13 +547,25 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
       if (!(d1 < ratio * d2)) continue;
       const std::uint32_t slot = im.label_slot[std::size_t(a.label)];
       const auto& loc = im.slots[slot].model->locations[std::size_t(im.label_loc[std::size_t(a.label)])];
-      by_slot[slot].push_back({{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)});
-      ++count[slot];
-      score[slot] += 1.f;
-      ++r.matches;
+      by_slot[slot].push_back({d2 > 0 ? d1 / d2 : 0.f, {{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)}});
+    }
+    for (std::size_t sl = 0; sl < by_slot.size(); ++sl) {
+      auto& v = by_slot[sl];
+      if (dynamic) {
+        std::stable_sort(v.begin(), v.end(), [](const Ranked& x, const Ranked& y) { return x.ratio < y.ratio; });
+        std::size_t keep = 0;
+        while (keep < v.size() && (v[keep].ratio < o.match.ratio_min || int(keep) < o.match.dynamic_goal)) ++keep;
+        v.resize(keep);
+      }
+      count[sl] = int(v.size());
+      score[sl] = float(v.size());
+      r.matches += int(v.size());
     }
     cand = Candidates(count, score, o);
-    for (std::uint32_t c : cand) votes.push_back(std::move(by_slot[c]));
+    for (std::uint32_t c : cand) {
+      votes.emplace_back();
+      for (const auto& x : by_slot[c]) votes.back().push_back(x.vote);
+    }
   }
   r.search_ms = ts.ElapsedMs();
 
