@@ -59,6 +59,28 @@ check "text: a load line, then one line per query (starry; no target)" \
   bash -c "grep -q '^loaded 3 targets' '$T/out' && grep -q 'view_0001.png: starry' '$T/out' && grep -q 'baboon.jpg: no target' '$T/out' && test \$(grep -c '' '$T/out') -eq 3"
 check "--draw wrote draw-0.png and draw-1.png" test -s "$T/draw-0.png" -a -s "$T/draw-1.png"
 
+# The word-based search (inverted file, built-in vocabulary) finds the same target.
+expect_ok "recognize --search words (JSON)" "$MVKP" recognize "$DB" "$T/s/view_0000.png" --json --search words
+check "words: starry found first with >= 12 inliers, nothing else" $PY -c "
+import json
+j = json.loads(open('$T/out').read().strip().splitlines()[0])
+f = j['found']
+import sys
+sys.exit(0 if len(f) >= 1 and f[0]['id'] == 'starry' and f[0]['inliers'] >= 12 and all(x['id'] == 'starry' for x in f) else 1)"
+expect_ok "recognize --search words, a non-target" "$MVKP" recognize "$DB" "$SAMPLES/baboon.jpg" --search words
+check "words: baboon.jpg: no target" grep -q 'baboon.jpg: no target' "$T/out"
+check "unknown --search is refused (usage error)" bash -c "! '$MVKP' recognize '$DB' '$SAMPLES/fruits.jpg' --search bogus 2>/dev/null"
+
+# The vocabulary command: train a small one, read it back, refuse a corrupt one.
+expect_ok "vocab train (64 words, 2 images)" "$MVKP" vocab train "$SAMPLES/fruits.jpg" "$SAMPLES/building.jpg" \
+  -o "$T/v.vocab" --words 64 --views 20
+expect_ok "vocab info" "$MVKP" vocab info "$T/v.vocab"
+check "vocab info: 64 words, 20-D" grep -q '64 words, 20-D' "$T/out"
+head -c 100 "$T/v.vocab" >"$T/cut.vocab"
+expect_fail "truncated vocabulary" "$T/cut.vocab" "$MVKP" vocab info "$T/cut.vocab"
+check "vocab train without -o is refused (usage error)" bash -c "! '$MVKP' vocab train '$SAMPLES/fruits.jpg' 2>/dev/null"
+expect_fail "more words than samples" "samples" "$MVKP" vocab train "$SAMPLES/fruits.jpg" -o "$T/w.vocab" --words 1000000
+
 # Bad input.
 expect_fail "missing database" "$T/none.db" "$MVKP" recognize "$T/none.db" "$SAMPLES/fruits.jpg"
 printf 'hello' >"$T/text.db"

@@ -1,5 +1,7 @@
 // mvkp vocab: train / inspect the visual vocabulary of the word-based
 // recogniser (src/mvkp/recognize/vocabulary.h).
+#include <unistd.h>
+
 #include <cstdio>
 #include <memory>
 
@@ -30,15 +32,17 @@ int RunVocabTrain(VocabArgs& a) {
   Timer t;
   std::vector<float> samples;
   int dims = 0;
+  const bool progress = ::isatty(2);  // a progress line on a terminal only, not in logs
   for (std::size_t i = 0; i < a.images.size(); ++i) {
     const cv::Mat gray = LoadImageGray(a.images[i]);
     const Model m = TrainNamed(a.images[i], gray, a.train);
     dims = m.descriptors.cols;
     for (int r = 0; r < m.descriptors.rows; ++r)
       samples.insert(samples.end(), m.descriptors.ptr<float>(r), m.descriptors.ptr<float>(r) + dims);
-    std::fprintf(stderr, "\r%zu/%zu images, %zu samples", i + 1, a.images.size(), samples.size() / std::size_t(dims));
+    if (progress)
+      std::fprintf(stderr, "\r%zu/%zu images, %zu samples", i + 1, a.images.size(), samples.size() / std::size_t(dims));
   }
-  std::fprintf(stderr, "\n");
+  if (progress) std::fprintf(stderr, "\n");
   const std::size_t n = samples.size() / std::size_t(dims);
   const Vocabulary v = TrainVocabulary(samples.data(), n, dims, a.opt);
   const std::vector<std::uint8_t> bytes = v.Serialize();

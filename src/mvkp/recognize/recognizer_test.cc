@@ -165,6 +165,26 @@ TEST(Recognizer, EmptyAndBadInput) {
   EXPECT_THROW(Recognizer{o}, Error);
 }
 
+TEST_F(RecognizerTest, DynamicRatioCapsEachTargetsMatchesAndStillFindsIt) {
+  RecognizerOptions o;
+  o.match.dynamic_goal = 30;
+  o.match.ratio_min = 0.01f;  // (almost) no match counts regardless of the goal
+  o.match.ratio_max = 0.95f;
+  const Recognizer rec = MakeRecognizer(o);
+  int ok = 0;
+  for (const char* id : {"starry_night", "coffee"}) {
+    const cv::Mat& img = images_->at(id);
+    for (int i = 0; i < 5; ++i) {
+      const SceneView v = MakeSceneView(img, SceneOptions{}, 2000 + i);
+      const RecognitionResult r = rec.Recognize(v.image);
+      for (const auto& f : r.found) EXPECT_LE(f.votes, 30) << id;
+      const Recognition* f = Find(r, id);
+      ok += f && MeanCornerError(f->homography, v.H, img.size()) < 5.0;
+    }
+  }
+  EXPECT_GE(ok, 8);  // of 10
+}
+
 // The word-based search (inverted file + Hamming signatures) on the same targets.
 RecognizerOptions WordsOptions() {
   RecognizerOptions o;
