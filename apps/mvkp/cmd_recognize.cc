@@ -180,6 +180,12 @@ void RegisterRecognize(CLI::App& app, int* code) {
                 "words with Hamming signatures (~7 KB/target, for thousands of targets)")
       ->transform(CLI::CheckedTransformer(searches, CLI::ignore_case))
       ->default_str("exact");
+  c->add_option("--query-words", a->opt.query_words, "words: nearest words looked up per query descriptor")
+      ->capture_default_str();
+  c->add_option("--max-hamming", a->opt.max_hamming, "words: signature bits (of 20) that may differ")->capture_default_str();
+  c->add_option("--max-locations", a->opt.max_locations, "words: locations stored per target (<= 256)")
+      ->capture_default_str();
+  c->add_option("--words-per-location", a->opt.words_per_location, "words: postings per location")->capture_default_str();
   c->callback([a, code] { *code = RunRecognize(*a); });
 }
 
