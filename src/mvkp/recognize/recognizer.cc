@@ -249,6 +249,17 @@ std::vector<std::uint32_t> Candidates(const std::vector<int>& count, const std::
 
 }  // namespace
 
+// kExact: every ratio-test match so far, per target slot, with its ratio, and
+// how many query points have been searched.
+struct Recognizer::SearchState {
+  struct Ranked {
+    float ratio;
+    Vote vote;
+  };
+  std::vector<std::vector<Ranked>> by_slot;
+  std::size_t searched = 0;
+};
+
 Recognizer::Recognizer(const RecognizerOptions& options, const Vocabulary* vocabulary)
     : impl_(std::make_unique<Impl>()), options_(options) {
   options_.Check();
@@ -397,7 +408,8 @@ RecognitionResult Recognizer::Search(const cv::Mat& gray, std::int64_t only_slot
   Features f = ExtractFeatures(gray, fo);
   r.detect_ms = f.smooth_ms + f.detect_ms;
   r.describe_ms = f.describe_ms;
-  VoteAndVerify(f, only_slot, o, r);
+  SearchState state;
+  VoteAndVerify(f, only_slot, o, state, r);
   int best = 0;
   for (const auto& x : r.found) best = std::max(best, x.inliers);
   if (best >= o.match.retry_below_inliers || o.match.half_res_points <= 0 || gray.cols < 64 || gray.rows < 64)
@@ -421,7 +433,7 @@ RecognitionResult Recognizer::Search(const cv::Mat& gray, std::int64_t only_slot
   f.keypoints.insert(f.keypoints.end(), g.keypoints.begin(), g.keypoints.end());
   cv::vconcat(f.descriptors, g.descriptors, f.descriptors);
   RecognitionResult second;
-  VoteAndVerify(f, only_slot, o, second);
+  VoteAndVerify(f, only_slot, o, state, second);
   r.search_ms += second.search_ms;
   r.verify_ms += second.verify_ms;
   r.keypoints = second.keypoints;
@@ -437,7 +449,7 @@ RecognitionResult Recognizer::Search(const cv::Mat& gray, std::int64_t only_slot
 }
 
 void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const RecognizerOptions& o,
-                               RecognitionResult& r) const {
+                               SearchState& state, RecognitionResult& r) const {
   const Impl& im = *impl_;
   const bool words = o.search == RecognizerSearch::kWords;
   r.keypoints = int(f.keypoints.size());
@@ -529,28 +541,33 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
     // then the next best by ratio, up to ratio_max, until it has dynamic_goal
     // of them. A plain painting then keeps enough correspondences and a
     // textured one is not flooded.
+    // Only the points not searched yet (the half-resolution retry adds some).
     const bool dynamic = o.match.dynamic_goal > 0;
     const float ratio = dynamic ? o.match.ratio_max : o.match.ratio;
-    std::vector<Neighbor> nn(2 * n);
-    struct Ranked {
-      float ratio;
-      Vote vote;
-    };
-    std::vector<std::vector<Ranked>> by_slot(im.slots.size());
-    im.index->SearchTwoDistinctBatch(f.descriptors.ptr<float>(0), n, nn.data(), ratio);
-    for (std::size_t i = 0; i < n; ++i) {
-      const Neighbor& a = nn[2 * i];
-      const Neighbor& b = nn[2 * i + 1];
+    using Ranked = SearchState::Ranked;
+    auto& found_by_slot = state.by_slot;
+    found_by_slot.resize(im.slots.size());
+    const std::size_t first = std::min(state.searched, n), m = n - first;
+    std::vector<Neighbor> nn(2 * m);
+    if (m > 0) im.index->SearchTwoDistinctBatch(f.descriptors.ptr<float>(int(first)), m, nn.data(), ratio);
+    for (std::size_t q = 0; q < m; ++q) {
+      const std::size_t i = first + q;
+      const Neighbor& a = nn[2 * q];
+      const Neighbor& b = nn[2 * q + 1];
       if (a.id < 0) continue;
       const float d1 = std::sqrt(a.distance);
       const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
       if (!(d1 < ratio * d2)) continue;
       const std::uint32_t slot = im.label_slot[std::size_t(a.label)];
       const auto& loc = im.slots[slot].model->locations[std::size_t(im.label_loc[std::size_t(a.label)])];
-      by_slot[slot].push_back({d2 > 0 ? d1 / d2 : 0.f, {{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)}});
+      found_by_slot[slot].push_back(
+          {d2 > 0 ? d1 / d2 : 0.f, {{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)}});
     }
+    state.searched = n;
+    std::vector<std::vector<Ranked>> by_slot(im.slots.size());
     for (std::size_t sl = 0; sl < by_slot.size(); ++sl) {
       auto& v = by_slot[sl];
+      v = found_by_slot[sl];
       if (dynamic) {
         std::stable_sort(v.begin(), v.end(), [](const Ranked& x, const Ranked& y) { return x.ratio < y.ratio; });
         std::size_t keep = 0;

@@ -162,7 +162,11 @@ class Recognizer {
   struct Impl;
   // Both searches; only_slot >= 0 restricts kWords to one target (focus).
   RecognitionResult Search(const cv::Mat& gray, std::int64_t only_slot, const RecognizerOptions& o) const;
-  void VoteAndVerify(const Features& f, std::int64_t only_slot, const RecognizerOptions& o, RecognitionResult& r) const;
+  // What a frame's search keeps between the first pass and the
+  // half-resolution retry, so the retry searches only the new points.
+  struct SearchState;
+  void VoteAndVerify(const Features& f, std::int64_t only_slot, const RecognizerOptions& o, SearchState& state,
+                     RecognitionResult& r) const;
 
   std::unique_ptr<Impl> impl_;
   RecognizerOptions options_;
