@@ -240,6 +240,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-hamming", ro_base.max_hamming, "words: signature bits that may differ")->capture_default_str();
   app.add_option("--query-words", ro_base.query_words, "words: nearest words per query descriptor")->capture_default_str();
   app.add_option("--min-inliers", ro_base.min_inliers, "inliers to accept a target")->capture_default_str();
+  auto* max_points_opt = app.add_option("--max-points", ro_base.match.max_points, "query points per frame (words: 600 unless given)");
   app.add_option("--min-votes", ro_base.min_votes, "votes to verify a target")->capture_default_str();
   app.add_option("--max-candidates", ro_base.max_candidates, "targets verified per frame")->capture_default_str();
   app.add_option("--max-corner-error", max_corner_error, "px, for a correct recognition")->capture_default_str();
@@ -253,6 +254,8 @@ int main(int argc, char** argv) {
   app.add_option("--dump", dump_dir, "write the first 20 targets and a frame of each kind here (PNG)");
   app.add_flag("--large", large, "allow sizes above 1000 (training takes hours)");
   CLI11_PARSE(app, argc, argv);
+  if (search == "words" && max_points_opt->count() == 0)
+    ro_base.match.max_points = RecognizerOptions::Words().match.max_points;
   Vocabulary vocab;
   if (!vocab_file.empty()) {
     const auto bytes = ReadFileBytes(vocab_file);
@@ -373,6 +376,7 @@ int main(int argc, char** argv) {
                                  {"max_hamming", ro_base.max_hamming},
                                  {"query_words", ro_base.query_words}}},
                       {"min_inliers", ro_base.min_inliers},
+                      {"max_points", ro_base.match.max_points},
                       {"min_votes", ro_base.min_votes},
                       {"train", {{"views", views}, {"locations", locations}, {"clusters", clusters},
                                  {"rotation_views", to.rotation_views}, {"points_per_view", to.points_per_view},

@@ -157,7 +157,8 @@ void RegisterRecognize(CLI::App& app, int* code) {
       ->capture_default_str();
   c->add_option("--ratio-min", m.ratio_min, "dynamic ratio: matches under it always count")->capture_default_str();
   c->add_option("--ratio-max", m.ratio_max, "dynamic ratio: no match above it counts")->capture_default_str();
-  c->add_option("--max-points", m.max_points, "strongest query points")->capture_default_str();
+  c->add_option("--max-points", m.max_points, "strongest query points (--search words: 600 unless given)")
+      ->capture_default_str();
   c->add_option("--half-res-points", m.half_res_points, "extra points from half resolution when nothing is found (0: off)")
       ->capture_default_str();
   c->add_option("--ransac-threshold", m.ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
@@ -186,7 +187,12 @@ void RegisterRecognize(CLI::App& app, int* code) {
   c->add_option("--max-locations", a->opt.max_locations, "words: locations stored per target (<= 256)")
       ->capture_default_str();
   c->add_option("--words-per-location", a->opt.words_per_location, "words: postings per location")->capture_default_str();
-  c->callback([a, code] { *code = RunRecognize(*a); });
+  c->callback([a, code, c] {
+    // The word search has its own query budget unless one is given.
+    if (a->opt.search == RecognizerSearch::kWords && c->count("--max-points") == 0)
+      a->opt.match.max_points = RecognizerOptions::Words().match.max_points;
+    *code = RunRecognize(*a);
+  });
 }
 
 }  // namespace mvkp::cli

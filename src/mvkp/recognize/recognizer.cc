@@ -49,10 +49,22 @@ std::string FeatureMismatch(const ModelParams& a, const ModelParams& b) {
 constexpr float kLocationScale = 4.f;
 constexpr float kMaxObjectSide = 65535.f / kLocationScale;
 
-struct Posting {
-  std::uint32_t slot_loc;   // slot << 8 | location
-  std::uint32_t signature;  // Hamming signature of the location's centres in this word
+// One stored (target, location, signature) in a word's list: 6 bytes, the
+// 20-bit signature, the 8-bit location and the 20-bit target slot packed
+// (at most 2^20 targets). Signatures keep the first 20 dimensions' bits.
+constexpr std::uint32_t kSignatureMask = (1u << 20) - 1;
+constexpr std::size_t kMaxSlots = std::size_t(1) << 20;
+struct __attribute__((packed)) Posting {
+  std::uint32_t lo;  // signature | location << 20 | (slot & 15) << 28
+  std::uint16_t hi;  // slot >> 4
+  static Posting Make(std::uint32_t slot, std::uint32_t loc, std::uint32_t signature) {
+    return {(signature & kSignatureMask) | loc << 20 | (slot & 15u) << 28, std::uint16_t(slot >> 4)};
+  }
+  std::uint32_t signature() const { return lo & kSignatureMask; }
+  std::uint32_t location() const { return (lo >> 20) & 0xffu; }
+  std::uint32_t slot() const { return lo >> 28 | std::uint32_t(hi) << 4; }
 };
+static_assert(sizeof(Posting) == 6);
 
 struct WordPosting {
   std::int32_t word;
@@ -148,7 +160,7 @@ std::vector<WordPosting> Recognizer::Impl::Encode(const Model& m, std::uint32_t 
     });
     for (std::size_t k = 0; k < ws.size() && int(k) < o.words_per_location; ++k) {
       for (int j = 0; j < dims; ++j) mean[std::size_t(j)] = float(ws[k].sum[std::size_t(j)] / ws[k].count);
-      out.push_back({ws[k].word, {slot << 8 | std::uint32_t(l), vocab->Signature(mean.data(), ws[k].word)}});
+      out.push_back({ws[k].word, Posting::Make(slot, std::uint32_t(l), vocab->Signature(mean.data(), ws[k].word))});
     }
   }
   return out;
@@ -229,7 +241,7 @@ std::size_t FilterPostings(const Posting* list, std::size_t size, std::uint32_t 
   std::size_t m = 0;
   for (std::size_t x = 0; x < size; ++x) {
     out[m] = std::uint32_t(x);
-    m += std::popcount(list[x].signature ^ signature) <= max_hamming;
+    m += std::popcount((list[x].lo ^ signature) & kSignatureMask) <= max_hamming;
   }
   return m;
 }
@@ -297,7 +309,7 @@ void Recognizer::Add(const std::string& id, const Model& model) {
   if (!im.free_slots.empty()) {
     slot = im.free_slots.back();
   } else {
-    Require(im.slots.size() < (std::size_t(1) << 24), ErrorCode::kInvalidArgument, "too many targets (16777216)");
+    Require(im.slots.size() < kMaxSlots, ErrorCode::kInvalidArgument, "too many targets (1048576)");
     slot = std::uint32_t(im.slots.size());
   }
   Impl::Target t;
@@ -329,7 +341,7 @@ bool Recognizer::Remove(const std::string& id) {
   if (it == im.by_id.end()) return false;
   const std::uint32_t slot = it->second;
   for (auto& list : im.lists)
-    std::erase_if(list, [slot](const Posting& p) { return p.slot_loc >> 8 == slot; });
+    std::erase_if(list, [slot](const Posting& p) { return p.slot() == slot; });
   im.slots[slot] = Impl::Target{};
   im.free_slots.push_back(slot);
   im.by_id.erase(it);
@@ -493,11 +505,11 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
           const std::size_t m = FilterPostings(list.data(), list.size(), a.signature, o.max_hamming, passing.data());
           for (std::size_t x = 0; x < m; ++x) {
             const Posting& p = list[passing[x]];
-            const int h = std::popcount(p.signature ^ a.signature);
-            const std::uint32_t slot = p.slot_loc >> 8;
+            const int h = std::popcount(p.signature() ^ (a.signature & kSignatureMask));
+            const std::uint32_t slot = p.slot();
             if (only_slot >= 0 && slot != std::uint64_t(only_slot)) continue;
             if (cand_index && (*cand_index)[slot] < 0) continue;
-            const std::uint32_t loc = p.slot_loc & 0xff;
+            const std::uint32_t loc = p.location();
             if (stamp[slot] != std::int32_t(i)) {
               stamp[slot] = std::int32_t(i);
               best_h[slot] = std::uint8_t(h);

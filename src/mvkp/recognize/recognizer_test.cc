@@ -186,11 +186,7 @@ TEST_F(RecognizerTest, DynamicRatioCapsEachTargetsMatchesAndStillFindsIt) {
 }
 
 // The word-based search (inverted file + Hamming signatures) on the same targets.
-RecognizerOptions WordsOptions() {
-  RecognizerOptions o;
-  o.search = RecognizerSearch::kWords;
-  return o;
-}
+RecognizerOptions WordsOptions() { return RecognizerOptions::Words(); }
 
 TEST_F(RecognizerTest, WordsRecogniseEachTargetInSyntheticScenesWithAFewKilobytesPerTarget) {
   Recognizer rec = MakeRecognizer(WordsOptions());
