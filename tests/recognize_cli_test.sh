@@ -69,6 +69,12 @@ import sys
 sys.exit(0 if len(f) >= 1 and f[0]['id'] == 'starry' and f[0]['inliers'] >= 12 and all(x['id'] == 'starry' for x in f) else 1)"
 expect_ok "recognize --search words, a non-target" "$MVKP" recognize "$DB" "$SAMPLES/baboon.jpg" --search words
 check "words: baboon.jpg: no target" grep -q 'baboon.jpg: no target' "$T/out"
+check "words: the targets came from the stored encodings" grep -q 'loaded 3 targets.*3 from stored word encodings' "$T/out"
+# A database without them (older, or made with other settings) still works: the models are encoded at load.
+$PY -c "import sqlite3; c = sqlite3.connect('$DB'); c.execute('DELETE FROM encodings'); c.commit()"
+expect_ok "recognize --search words without stored encodings" "$MVKP" recognize "$DB" "$T/s/view_0000.png" --search words
+check "words without encodings: 0 from encodings, starry found" \
+  bash -c "grep -q '0 from stored word encodings' '$T/out' && grep -q 'view_0000.png: starry' '$T/out'"
 check "unknown --search is refused (usage error)" bash -c "! '$MVKP' recognize '$DB' '$SAMPLES/fruits.jpg' --search bogus 2>/dev/null"
 
 # The vocabulary command: train a small one, read it back, refuse a corrupt one.

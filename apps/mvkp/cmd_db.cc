@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "db_load.h"
 #include "mvkp/core/atomic_file.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
@@ -53,6 +54,9 @@ TargetRecord MakeRecord(TargetInfo info, const std::string& image_path, const Tr
   r.info = std::move(info);
   r.image = ReadFileBytes(image_path);
   r.model = SerializeModel(model);
+  // The word search's compact form, so `recognize --search words` need not
+  // decode thousands of models (a few KB more per target).
+  r.encodings.push_back({kWordsEncoding, Recognizer(RecognizerOptions::Words()).Encode(model)});
   return r;
 }
 

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "commands.h"
+#include "db_load.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
@@ -67,23 +68,23 @@ int RunRecognize(RecognizeArgs& a) {
   a.pose.Load();  // a bad --camera file fails before any work
   Timer tl;
   const TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadOnly);
-  const std::vector<TargetRecord> records = store.LoadAll();
-  Require(!records.empty(), ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
+  Require(store.Count() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
   Recognizer rec(a.opt);
   std::map<std::string, std::string> titles;
-  for (const auto& t : records) {
-    const Model model = DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'");
-    a.pose.AddTarget(t.info.id, t.info.meta, model.object_width, model.object_height, a.db);
-    rec.Add(t.info.id, model);
-    titles[t.info.id] = t.info.title;
-  }
+  const std::size_t encoded = LoadTargets(store, rec, a.db, [&](const TargetInfo& info, int width, int height) {
+    a.pose.AddTarget(info.id, info.meta, width, height, a.db);
+    titles[info.id] = info.title;
+  });
   rec.ShrinkToFit();
   const std::size_t bytes = rec.memory_bytes();  // also builds the index
   const double load_ms = tl.ElapsedMs();
   // Load time: a text line first, or fields of every JSON line (stderr stays for errors only).
   if (!a.json)
-    std::printf("loaded %zu targets from %s in %.1f ms (%.2f MB in memory)\n", rec.size(), a.db.c_str(), load_ms,
-                bytes / 1048576.0);
+    std::printf("loaded %zu targets from %s in %.1f ms (%.2f MB in memory%s)\n", rec.size(), a.db.c_str(), load_ms,
+                bytes / 1048576.0,
+                a.opt.search == RecognizerSearch::kWords
+                    ? (", " + std::to_string(encoded) + " from stored word encodings").c_str()
+                    : "");
 
   int failures = 0;
   for (std::size_t i = 0; i < a.queries.size(); ++i) {

@@ -67,6 +67,14 @@ constexpr const char* kMigrations[] = {
     " added_at TEXT NOT NULL DEFAULT '',"
     " model BLOB NOT NULL,"
     " image BLOB NOT NULL DEFAULT x'');",
+    // 1 -> 2: derived forms of a target's model, by kind (e.g. "words": the
+    // word search's compact encoding), so a recogniser need not decode every
+    // model. Optional: a target without one is encoded from its model.
+    "CREATE TABLE encodings("
+    " id TEXT NOT NULL,"
+    " kind TEXT NOT NULL,"
+    " data BLOB NOT NULL,"
+    " PRIMARY KEY (id, kind));",
 };
 static_assert(std::size(kMigrations) == kTargetStoreSchemaVersion,
               "one migration per schema version");
@@ -305,6 +313,11 @@ void Conn::Insert(const TargetRecord& r, const std::string& added_at) {
     throw Error(ErrorCode::kInvalidArgument, path + ": target '" + r.info.id + "' already exists");
   }
   if (rc != SQLITE_DONE) Fail(rc);
+  for (const auto& [kind, data] : r.encodings) {
+    Stmt e(*this, "INSERT INTO encodings(id, kind, data) VALUES (?1, ?2, ?3)");
+    e.Text(1, r.info.id).Text(2, kind).Blob(3, data);
+    e.Step();
+  }
 }
 
 void Conn::Connect(const std::string& file, bool ro) {
@@ -424,7 +437,9 @@ TargetStore TargetStore::Open(const std::string& path, Mode mode) {
       s.Migrate();
       txn.Commit();
     }
-  } else if (s.version < kTargetStoreSchemaVersion) {
+  } else if (s.version < 1) {
+    // Version 1 is readable as it is (later versions only add optional
+    // tables); an empty version-0 file is not a database yet.
     throw Error(ErrorCode::kBadModel, path + ": DB: schema version " + std::to_string(s.version) +
                                           " is older than this build's " +
                                           std::to_string(kTargetStoreSchemaVersion) +
@@ -458,6 +473,9 @@ bool TargetStore::Remove(const std::string& id) {
   st.Text(1, id);
   st.Step();
   const bool removed = sqlite3_changes(impl_->db) > 0;
+  Stmt enc(*impl_, "DELETE FROM encodings WHERE id = ?1");
+  enc.Text(1, id);
+  enc.Step();
   txn.Commit();
   return removed;
 }
@@ -505,6 +523,16 @@ TargetRecord TargetStore::Get(const std::string& id, bool with_image) const {
   r.model = st.ColBlob(9);
   if (with_image) r.image = st.ColBlob(10);
   return r;
+}
+
+std::vector<std::pair<TargetInfo, std::vector<std::uint8_t>>> TargetStore::LoadEncodings(const std::string& kind) const {
+  std::vector<std::pair<TargetInfo, std::vector<std::uint8_t>>> out;
+  if (impl_->version < 2) return out;  // a version-1 file opened read-only has none
+  Stmt st(*impl_, "SELECT t.id, t.title, t.artist, t.year, t.url, t.meta, t.width, t.height, t.added_at, e.data"
+                  " FROM targets t JOIN encodings e ON e.id = t.id AND e.kind = ?1 ORDER BY t.id");
+  st.Text(1, kind);
+  while (st.Step()) out.emplace_back(st.ColInfo(), st.ColBlob(9));
+  return out;
 }
 
 std::vector<TargetRecord> TargetStore::LoadAll() const {

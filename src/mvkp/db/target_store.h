@@ -6,7 +6,10 @@
 //           meta TEXT (free-form JSON, '{}' by default), width INTEGER,
 //           height INTEGER, image BLOB (the encoded target image, may be
 //           empty), model BLOB (SerializeModel bytes), added_at TEXT (UTC ISO 8601))
-// Opening an older schema migrates it in one transaction; a newer one is
+//   encodings(id TEXT, kind TEXT, data BLOB; primary key (id, kind)): derived
+//           forms of a target's model (schema 2), e.g. the word search's.
+// Opening an older schema read-write migrates it in one transaction (read-only,
+// a version-1 file is read as it is, without encodings); a newer one is
 // refused. The file uses WAL journaling, so many readers (other processes
 // included) can read while one writer adds or removes targets; every add or
 // remove is one transaction, so a crash leaves either the old or the new
@@ -15,11 +18,12 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace mvkp {
 
-constexpr int kTargetStoreSchemaVersion = 1;
+constexpr int kTargetStoreSchemaVersion = 2;
 
 struct TargetInfo {
   std::string id;      // non-empty, at most 256 bytes, no control characters
@@ -33,6 +37,9 @@ struct TargetRecord {
   TargetInfo info;
   std::vector<std::uint8_t> image;  // encoded image bytes (JPEG/PNG), may be empty
   std::vector<std::uint8_t> model;  // SerializeModel bytes
+  // Derived forms stored with it (kind, bytes), e.g. {"words",
+  // Recognizer::Encode(model)}; written by Add/AddAll, not read back by Get.
+  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> encodings;
 };
 
 // One TargetStore (one SQLite connection) is for one thread at a time;
@@ -78,6 +85,9 @@ class TargetStore {
   // Every target with its model (not the image), ordered by id: what a
   // recogniser loads.
   std::vector<TargetRecord> LoadAll() const;
+  // The targets that have an encoding of `kind`, with it, ordered by id (none
+  // from a version-1 file opened read-only).
+  std::vector<std::pair<TargetInfo, std::vector<std::uint8_t>>> LoadEncodings(const std::string& kind) const;
 
  private:
   struct Impl;

@@ -313,6 +313,57 @@ TEST_F(TargetStoreTest, OpenRejectsWhatIsNotOurs) {
   }
 }
 
+TEST_F(TargetStoreTest, EncodingsAreStoredWithTheTargetAndRemovedWithIt) {
+  {
+    TargetStore store = TargetStore::Create(db_);
+    TargetRecord a = Record("a", 100, 1);
+    a.encodings.push_back({"words", Pattern(40, 7)});
+    a.encodings.push_back({"other", Pattern(10, 8)});
+    store.Add(a);
+    store.Add(Record("b", 100, 2));  // none
+    TargetRecord dup = Record("a", 100, 3);
+    dup.encodings.push_back({"words", Pattern(40, 9)});
+    EXPECT_THROW(store.Add(dup), Error);  // nothing of it written
+  }
+  TargetStore ro = TargetStore::Open(db_);
+  auto words = ro.LoadEncodings("words");
+  ASSERT_EQ(words.size(), 1u);
+  EXPECT_EQ(words[0].first.id, "a");
+  EXPECT_EQ(words[0].second, Pattern(40, 7));
+  EXPECT_EQ(ro.LoadEncodings("other").size(), 1u);
+  EXPECT_TRUE(ro.LoadEncodings("none").empty());
+  {
+    TargetStore rw = TargetStore::Open(db_, TargetStore::Mode::kReadWrite);
+    EXPECT_TRUE(rw.Remove("a"));
+  }
+  EXPECT_TRUE(TargetStore::Open(db_).LoadEncodings("words").empty());
+  EXPECT_EQ(Sql(db_, "SELECT count(*) FROM encodings"), "0");
+}
+
+TEST_F(TargetStoreTest, VersionOneFilesAreReadAsTheyAreAndMigratedOnWrite) {
+  {
+    TargetStore store = TargetStore::Create(db_);
+    store.Add(Record("a", 100, 1));
+  }
+  // What schema 1 looked like: no encodings table.
+  Sql(db_, "DROP TABLE encodings; PRAGMA user_version = 1;");
+  {
+    TargetStore ro = TargetStore::Open(db_);
+    EXPECT_EQ(ro.schema_version(), 1);
+    EXPECT_EQ(ro.LoadAll().size(), 1u);
+    EXPECT_TRUE(ro.LoadEncodings("words").empty());
+  }
+  {
+    TargetStore rw = TargetStore::Open(db_, TargetStore::Mode::kReadWrite);
+    EXPECT_EQ(rw.schema_version(), kTargetStoreSchemaVersion);
+    TargetRecord b = Record("b", 100, 2);
+    b.encodings.push_back({"words", Pattern(30, 4)});
+    rw.Add(b);
+  }
+  EXPECT_EQ(TargetStore::Open(db_).LoadEncodings("words").size(), 1u);
+  EXPECT_EQ(TargetStore::Open(db_).Get("a").model, Pattern(100, 1));
+}
+
 TEST_F(TargetStoreTest, OlderSchemaIsMigratedOnReadWriteOpen) {
   // A version-0 file: our application_id, no schema yet.
   Sql(db_, "PRAGMA application_id = " + std::to_string(0x4d564b50) + "; PRAGMA user_version = 0;");

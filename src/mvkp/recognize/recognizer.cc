@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <unordered_map>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/core/crc32.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/describe/features.h"
@@ -66,9 +68,18 @@ struct __attribute__((packed)) Posting {
 };
 static_assert(sizeof(Posting) == 6);
 
-struct WordPosting {
-  std::int32_t word;
-  Posting posting;
+// A target as kWords stores it, independent of its slot: what Encode
+// serialises and AddEncoded reads back.
+struct Encoded {
+  ModelParams params;  // the query-side feature settings
+  int width = 0, height = 0;
+  std::vector<std::uint16_t> xy;  // 2 per kept location, quarter pixels
+  struct Entry {
+    std::int32_t word;
+    std::uint32_t location;
+    std::uint32_t signature;
+  };
+  std::vector<Entry> entries;
 };
 
 struct Vote {
@@ -108,13 +119,18 @@ struct Recognizer::Impl {
   mutable std::map<std::string, std::shared_ptr<const Matcher>> focus;  // RecognizeOne's matchers
 
   void EnsureIndex(const RecognizerOptions& o) const;
-  std::vector<WordPosting> Encode(const Model& m, std::uint32_t slot, const RecognizerOptions& o,
-                                  std::vector<std::uint16_t>& xy) const;
+  Encoded Encode(const Model& m, const RecognizerOptions& o) const;
+  // Takes a slot and stores the target (all checks done before).
+  void Insert(const std::string& id, Encoded e, std::shared_ptr<const Model> model);
 };
 
-std::vector<WordPosting> Recognizer::Impl::Encode(const Model& m, std::uint32_t slot, const RecognizerOptions& o,
-                                                  std::vector<std::uint16_t>& xy) const {
+Encoded Recognizer::Impl::Encode(const Model& m, const RecognizerOptions& o) const {
+  Encoded enc;
+  enc.params = m.params;
+  enc.width = m.object_width;
+  enc.height = m.object_height;
   const int L = std::min<int>(o.max_locations, int(m.locations.size()));
+  auto& xy = enc.xy;
   xy.resize(2 * std::size_t(L));
   for (int l = 0; l < L; ++l) {
     const auto& p = m.locations[std::size_t(l)];
@@ -151,7 +167,6 @@ std::vector<WordPosting> Recognizer::Impl::Encode(const Model& m, std::uint32_t 
     it->distance += wa[i].distance;
     for (int j = 0; j < dims; ++j) it->sum[std::size_t(j)] += x[i * std::size_t(dims) + std::size_t(j)];
   }
-  std::vector<WordPosting> out;
   std::vector<float> mean(static_cast<std::size_t>(dims));
   for (int l = 0; l < L; ++l) {
     auto& ws = per_loc[std::size_t(l)];
@@ -160,10 +175,38 @@ std::vector<WordPosting> Recognizer::Impl::Encode(const Model& m, std::uint32_t 
     });
     for (std::size_t k = 0; k < ws.size() && int(k) < o.words_per_location; ++k) {
       for (int j = 0; j < dims; ++j) mean[std::size_t(j)] = float(ws[k].sum[std::size_t(j)] / ws[k].count);
-      out.push_back({ws[k].word, Posting::Make(slot, std::uint32_t(l), vocab->Signature(mean.data(), ws[k].word))});
+      enc.entries.push_back({ws[k].word, std::uint32_t(l), vocab->Signature(mean.data(), ws[k].word)});
     }
   }
-  return out;
+  return enc;
+}
+
+void Recognizer::Impl::Insert(const std::string& id, Encoded e, std::shared_ptr<const Model> model) {
+  std::uint32_t slot;
+  if (!free_slots.empty()) {
+    slot = free_slots.back();
+  } else {
+    Require(slots.size() < kMaxSlots, ErrorCode::kInvalidArgument, "too many targets (1048576)");
+    slot = std::uint32_t(slots.size());
+  }
+  Target t;
+  t.id = id;
+  t.width = e.width;
+  t.height = e.height;
+  t.alive = true;
+  t.xy = std::move(e.xy);
+  t.model = std::move(model);
+  if (slot == slots.size()) slots.emplace_back();
+  else free_slots.pop_back();
+  slots[slot] = std::move(t);
+  for (const auto& x : e.entries) lists[std::size_t(x.word)].push_back(Posting::Make(slot, x.location, x.signature));
+  by_id.emplace(id, slot);
+  if (!have_params) {
+    have_params = true;
+    params = e.params;
+    first_id = id;
+  }
+  dirty = true;
 }
 
 void Recognizer::Impl::EnsureIndex(const RecognizerOptions& o) const {
@@ -261,6 +304,128 @@ std::vector<std::uint32_t> Candidates(const std::vector<int>& count, const std::
 
 }  // namespace
 
+// The serialised form of an Encoded target (little-endian):
+//   "MVKPWENC", u32 version, u32 vocabulary checksum, u32 vocabulary size,
+//   u32 max_locations, u32 words_per_location, the query-side ModelParams,
+//   i32 width, i32 height, u32 L, L x (u16 x, u16 y), u32 E,
+//   E x (i32 word, u8 location, u32 signature), u32 crc32 of all before.
+constexpr char kEncodedMagic[8] = {'M', 'V', 'K', 'P', 'W', 'E', 'N', 'C'};
+constexpr std::uint32_t kEncodedVersion = 1;
+
+struct ByteWriter {
+  std::vector<std::uint8_t> out;
+  template <class T>
+  void Put(T v) {
+    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
+    out.insert(out.end(), p, p + sizeof(T));
+  }
+};
+
+struct ByteReader {
+  const std::uint8_t* p;
+  std::size_t left;
+  const std::string& name;
+  template <class T>
+  T Get() {
+    if (left < sizeof(T)) throw Error(ErrorCode::kBadModel, name + ": truncated word encoding");
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    p += sizeof(T);
+    left -= sizeof(T);
+    return v;
+  }
+};
+
+void PutParams(ByteWriter& w, const ModelParams& m) {
+  w.Put<float>(m.smooth_sigma);
+  w.Put<std::int32_t>(m.patch_size);
+  w.Put<std::int32_t>(m.dims);
+  w.Put<std::uint8_t>(m.orient ? 1 : 0);
+  w.Put<std::int32_t>(m.orientation_radius);
+  w.Put<float>(m.min_strength);
+  w.Put<float>(m.relative_threshold);
+  w.Put<float>(m.min_distance);
+  w.Put<std::int32_t>(m.block_size);
+}
+
+ModelParams GetParams(ByteReader& r) {
+  ModelParams m;
+  m.smooth_sigma = r.Get<float>();
+  m.patch_size = r.Get<std::int32_t>();
+  m.dims = r.Get<std::int32_t>();
+  m.orient = r.Get<std::uint8_t>() != 0;
+  m.orientation_radius = r.Get<std::int32_t>();
+  m.min_strength = r.Get<float>();
+  m.relative_threshold = r.Get<float>();
+  m.min_distance = r.Get<float>();
+  m.block_size = r.Get<std::int32_t>();
+  return m;
+}
+
+std::vector<std::uint8_t> SerializeEncoded(const Encoded& e, const Vocabulary& v, const RecognizerOptions& o) {
+  ByteWriter w;
+  w.out.assign(kEncodedMagic, kEncodedMagic + 8);
+  w.Put<std::uint32_t>(kEncodedVersion);
+  w.Put<std::uint32_t>(v.checksum());
+  w.Put<std::uint32_t>(std::uint32_t(v.size()));
+  w.Put<std::uint32_t>(std::uint32_t(o.max_locations));
+  w.Put<std::uint32_t>(std::uint32_t(o.words_per_location));
+  PutParams(w, e.params);
+  w.Put<std::int32_t>(e.width);
+  w.Put<std::int32_t>(e.height);
+  w.Put<std::uint32_t>(std::uint32_t(e.xy.size() / 2));
+  for (std::uint16_t c : e.xy) w.Put<std::uint16_t>(c);
+  w.Put<std::uint32_t>(std::uint32_t(e.entries.size()));
+  for (const auto& x : e.entries) {
+    w.Put<std::int32_t>(x.word);
+    w.Put<std::uint8_t>(std::uint8_t(x.location));
+    w.Put<std::uint32_t>(x.signature);
+  }
+  w.Put<std::uint32_t>(Crc32(w.out.data(), w.out.size()));
+  return std::move(w.out);
+}
+
+// Throws Error(kBadModel) naming `name` for a corrupt encoding, or one made
+// with another vocabulary or other word settings (the caller then encodes
+// the model again).
+Encoded ParseEncoded(const std::uint8_t* data, std::size_t size, const Vocabulary& v, const RecognizerOptions& o,
+                     const std::string& name) {
+  auto bad = [&](const std::string& why) { return Error(ErrorCode::kBadModel, name + ": " + why); };
+  if (size < 12 || std::memcmp(data, kEncodedMagic, 8) != 0) throw bad("not an mvkp word encoding");
+  std::uint32_t crc;
+  std::memcpy(&crc, data + size - 4, 4);
+  if (Crc32(data, size - 4) != crc) throw bad("word encoding checksum mismatch (corrupt)");
+  ByteReader r{data + 8, size - 12, name};
+  if (r.Get<std::uint32_t>() != kEncodedVersion) throw bad("word encoding of another format version");
+  if (r.Get<std::uint32_t>() != v.checksum() || r.Get<std::uint32_t>() != std::uint32_t(v.size()))
+    throw bad("word encoding made with another vocabulary");
+  if (r.Get<std::uint32_t>() != std::uint32_t(o.max_locations) ||
+      r.Get<std::uint32_t>() != std::uint32_t(o.words_per_location))
+    throw bad("word encoding made with other word settings");
+  Encoded e;
+  e.params = GetParams(r);
+  e.width = r.Get<std::int32_t>();
+  e.height = r.Get<std::int32_t>();
+  if (e.params.dims != v.dims()) throw bad("word encoding of another descriptor size");
+  if (e.width < 1 || e.height < 1 || e.width > kMaxObjectSide || e.height > kMaxObjectSide)
+    throw bad("bad target size in word encoding");
+  const std::uint32_t L = r.Get<std::uint32_t>();
+  if (L < 1 || L > 256 || L > std::uint32_t(o.max_locations)) throw bad("bad location count in word encoding");
+  e.xy.resize(2 * std::size_t(L));
+  for (auto& c : e.xy) c = r.Get<std::uint16_t>();
+  const std::uint32_t E = r.Get<std::uint32_t>();
+  if (E > L * std::uint32_t(o.words_per_location)) throw bad("bad posting count in word encoding");
+  e.entries.resize(E);
+  for (auto& x : e.entries) {
+    x.word = r.Get<std::int32_t>();
+    x.location = r.Get<std::uint8_t>();
+    x.signature = r.Get<std::uint32_t>();
+    if (x.word < 0 || x.word >= v.size() || x.location >= L) throw bad("bad posting in word encoding");
+  }
+  if (r.left != 0) throw bad("trailing bytes in word encoding");
+  return e;
+}
+
 // kExact: every ratio-test match so far, per target slot, with its ratio, and
 // how many query points have been searched.
 struct Recognizer::SearchState {
@@ -305,34 +470,45 @@ void Recognizer::Add(const std::string& id, const Model& model) {
     Require(model.object_width <= kMaxObjectSide && model.object_height <= kMaxObjectSide,
             ErrorCode::kInvalidArgument, "target '" + id + "': larger than 16383 px");
   }
-  std::uint32_t slot;
-  if (!im.free_slots.empty()) {
-    slot = im.free_slots.back();
+  Encoded e;
+  if (words) {
+    e = im.Encode(model, options_);  // may throw: nothing changed yet
   } else {
-    Require(im.slots.size() < kMaxSlots, ErrorCode::kInvalidArgument, "too many targets (1048576)");
-    slot = std::uint32_t(im.slots.size());
+    e.params = model.params;
+    e.width = model.object_width;
+    e.height = model.object_height;
   }
-  Impl::Target t;
-  t.id = id;
-  t.width = model.object_width;
-  t.height = model.object_height;
-  t.alive = true;
-  std::vector<WordPosting> enc;
-  if (words) enc = im.Encode(model, slot, options_, t.xy);  // may throw: nothing changed yet
-  if (!words || options_.keep_models) t.model = std::make_shared<const Model>(model);
-
-  if (slot == im.slots.size()) im.slots.emplace_back();
-  else im.free_slots.pop_back();
-  im.slots[slot] = std::move(t);
-  for (const auto& e : enc) im.lists[std::size_t(e.word)].push_back(e.posting);
-  im.by_id.emplace(id, slot);
-  if (!im.have_params) {
-    im.have_params = true;
-    im.params = model.params;
-    im.first_id = id;
-  }
+  im.Insert(id, std::move(e), !words || options_.keep_models ? std::make_shared<const Model>(model) : nullptr);
   ids_.push_back(id);
-  im.dirty = true;
+}
+
+std::vector<std::uint8_t> Recognizer::Encode(const Model& model) const {
+  const Impl& im = *impl_;
+  Require(options_.search == RecognizerSearch::kWords, ErrorCode::kInvalidArgument,
+          "encode: only the word search has a compact encoding");
+  model.Validate("model");
+  Require(model.params.dims == im.vocab->dims(), ErrorCode::kInvalidArgument,
+          "encode: descriptor dims differ from the vocabulary's");
+  Require(model.object_width <= kMaxObjectSide && model.object_height <= kMaxObjectSide,
+          ErrorCode::kInvalidArgument, "encode: target larger than 16383 px");
+  return SerializeEncoded(im.Encode(model, options_), *im.vocab, options_);
+}
+
+void Recognizer::AddEncoded(const std::string& id, const std::uint8_t* data, std::size_t size) {
+  Impl& im = *impl_;
+  Require(options_.search == RecognizerSearch::kWords, ErrorCode::kInvalidArgument,
+          "add encoded: only the word search has a compact encoding");
+  Require(!id.empty(), ErrorCode::kInvalidArgument, "target id must not be empty");
+  Require(!Contains(id), ErrorCode::kInvalidArgument, "target '" + id + "' already exists");
+  Encoded e = ParseEncoded(data, size, *im.vocab, options_, "target '" + id + "'");
+  if (im.have_params) {
+    const std::string diff = FeatureMismatch(im.params, e.params);
+    Require(diff.empty(), ErrorCode::kInvalidArgument,
+            "target '" + id + "': feature setting " + diff + " differs from the targets already added (e.g. '" +
+                im.first_id + "'); all targets must share the query-side feature settings");
+  }
+  im.Insert(id, std::move(e), nullptr);
+  ids_.push_back(id);
 }
 
 bool Recognizer::Remove(const std::string& id) {

@@ -140,6 +140,16 @@ class Recognizer {
   // Error(kBadModel) for an inconsistent model. Targets keep their order of
   // addition in ids().
   void Add(const std::string& id, const Model& model);
+  // kWords: the compact form Add stores for `model` (a few KB, CRC-checked,
+  // tied to the vocabulary and the word settings), and adding a target from
+  // it, so a database can keep it beside the model and a recogniser load
+  // thousands of targets without decoding their models. AddEncoded throws
+  // Error(kBadModel) for a corrupt encoding or one made with another
+  // vocabulary or word settings (encode the model again then), and the
+  // errors of Add. Targets added this way have no model: RecognizeOne uses
+  // their postings even with keep_models.
+  std::vector<std::uint8_t> Encode(const Model& model) const;
+  void AddEncoded(const std::string& id, const std::uint8_t* data, std::size_t size);
   // False if there is no such id.
   bool Remove(const std::string& id);
   bool Contains(const std::string& id) const;

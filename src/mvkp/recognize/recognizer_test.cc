@@ -253,5 +253,45 @@ TEST_F(RecognizerTest, WordsAreDeterministicAndCheckTheVocabulary) {
   EXPECT_THROW(o.Check(), Error);
 }
 
+TEST_F(RecognizerTest, WordEncodingsRoundTripAndAreChecked) {
+  const Recognizer direct = MakeRecognizer(WordsOptions());
+  Recognizer loaded(WordsOptions());
+  for (const auto& [id, m] : *models_) {
+    const std::vector<std::uint8_t> bytes = direct.Encode(m);
+    EXPECT_LT(bytes.size(), 8192u) << id;
+    loaded.AddEncoded(id, bytes.data(), bytes.size());
+  }
+  // The same postings: the same answers.
+  for (const char* id : {"starry_night", "building"}) {
+    const SceneView v = MakeSceneView(images_->at(id), SceneOptions{}, 6000);
+    const RecognitionResult a = direct.Recognize(v.image), b = loaded.Recognize(v.image);
+    ASSERT_EQ(a.found.size(), b.found.size()) << id;
+    for (std::size_t k = 0; k < a.found.size(); ++k) {
+      EXPECT_EQ(a.found[k].id, b.found[k].id);
+      EXPECT_EQ(a.found[k].inliers, b.found[k].inliers);
+    }
+    EXPECT_EQ(a.matches, b.matches);
+  }
+  std::vector<std::uint8_t> bytes = direct.Encode(models_->at("coffee"));
+  Recognizer other(WordsOptions());
+  std::vector<std::uint8_t> corrupt = bytes;
+  corrupt[corrupt.size() / 2] ^= 0x10;
+  EXPECT_THROW(other.AddEncoded("c", corrupt.data(), corrupt.size()), Error);
+  EXPECT_THROW(other.AddEncoded("c", bytes.data(), bytes.size() - 5), Error);
+  EXPECT_THROW(loaded.AddEncoded("coffee", bytes.data(), bytes.size()), Error);  // duplicate id
+  // Another vocabulary or other word settings: refused, so the caller encodes again.
+  std::vector<float> words(20 * 64);
+  for (std::size_t k = 0; k < words.size(); ++k) words[k] = float(k % 7) - 3.f;
+  const Vocabulary small(words, 20);
+  Recognizer with_small(WordsOptions(), &small);
+  EXPECT_THROW(with_small.AddEncoded("c", bytes.data(), bytes.size()), Error);
+  RecognizerOptions fewer = WordsOptions();
+  fewer.words_per_location = 3;
+  Recognizer with_fewer(fewer);
+  EXPECT_THROW(with_fewer.AddEncoded("c", bytes.data(), bytes.size()), Error);
+  EXPECT_EQ(other.size() + with_small.size() + with_fewer.size(), 0u);
+  EXPECT_THROW(Recognizer().Encode(models_->at("coffee")), Error);  // kExact has no encoding
+}
+
 }  // namespace
 }  // namespace mvkp

@@ -1,0 +1,36 @@
+#include "db_load.h"
+
+#include <set>
+
+#include "mvkp/core/error.h"
+#include "mvkp/model/model.h"
+
+namespace mvkp::cli {
+
+std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::string& db,
+                        const std::function<void(const TargetInfo&, int, int)>& each) {
+  std::set<std::string> done;
+  if (rec.options().search == RecognizerSearch::kWords) {
+    for (const auto& [info, data] : store.LoadEncodings(kWordsEncoding)) {
+      try {
+        rec.AddEncoded(info.id, data.data(), data.size());
+      } catch (const Error& e) {
+        if (e.code() != ErrorCode::kBadModel) throw;
+        continue;  // made with another vocabulary or settings, or damaged: encode the model below
+      }
+      each(info, info.width, info.height);
+      done.insert(info.id);
+    }
+  }
+  const std::size_t from_encodings = done.size();
+  for (const TargetInfo& info : store.List()) {
+    if (done.count(info.id)) continue;
+    const TargetRecord t = store.Get(info.id, /*with_image=*/false);
+    const Model model = DeserializeModel(t.model.data(), t.model.size(), db + ": target '" + info.id + "'");
+    rec.Add(info.id, model);
+    each(info, model.object_width, model.object_height);
+  }
+  return from_encodings;
+}
+
+}  // namespace mvkp::cli
