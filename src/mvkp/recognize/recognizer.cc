@@ -120,6 +120,19 @@ struct Recognizer::Impl {
 
   void EnsureIndex(const RecognizerOptions& o) const;
   Encoded Encode(const Model& m, const RecognizerOptions& o) const;
+  // Throw Error(kInvalidArgument) for an empty or taken id, and for query-side
+  // feature settings that differ from the targets already held.
+  void RequireNewId(const std::string& id) const {
+    Require(!id.empty(), ErrorCode::kInvalidArgument, "target id must not be empty");
+    Require(!by_id.count(id), ErrorCode::kInvalidArgument, "target '" + id + "' already exists");
+  }
+  void RequireSameFeatures(const std::string& id, const ModelParams& p) const {
+    if (!have_params) return;
+    const std::string diff = FeatureMismatch(params, p);
+    Require(diff.empty(), ErrorCode::kInvalidArgument,
+            "target '" + id + "': feature setting " + diff + " differs from the targets already added (e.g. '" +
+                first_id + "'); all targets must share the query-side feature settings");
+  }
   // Takes a slot and stores the target (all checks done before).
   void Insert(const std::string& id, Encoded e, std::shared_ptr<const Model> model);
 };
@@ -453,15 +466,9 @@ Recognizer& Recognizer::operator=(Recognizer&&) noexcept = default;
 
 void Recognizer::Add(const std::string& id, const Model& model) {
   Impl& im = *impl_;
-  Require(!id.empty(), ErrorCode::kInvalidArgument, "target id must not be empty");
-  Require(!Contains(id), ErrorCode::kInvalidArgument, "target '" + id + "' already exists");
+  im.RequireNewId(id);
   model.Validate("target '" + id + "'");
-  if (im.have_params) {
-    const std::string diff = FeatureMismatch(im.params, model.params);
-    Require(diff.empty(), ErrorCode::kInvalidArgument,
-            "target '" + id + "': feature setting " + diff + " differs from the targets already added (e.g. '" +
-                im.first_id + "'); all targets must share the query-side feature settings");
-  }
+  im.RequireSameFeatures(id, model.params);
   const bool words = options_.search == RecognizerSearch::kWords;
   if (words) {
     Require(model.params.dims == im.vocab->dims(), ErrorCode::kInvalidArgument,
@@ -498,15 +505,9 @@ void Recognizer::AddEncoded(const std::string& id, const std::uint8_t* data, std
   Impl& im = *impl_;
   Require(options_.search == RecognizerSearch::kWords, ErrorCode::kInvalidArgument,
           "add encoded: only the word search has a compact encoding");
-  Require(!id.empty(), ErrorCode::kInvalidArgument, "target id must not be empty");
-  Require(!Contains(id), ErrorCode::kInvalidArgument, "target '" + id + "' already exists");
+  im.RequireNewId(id);
   Encoded e = ParseEncoded(data, size, *im.vocab, options_, "target '" + id + "'");
-  if (im.have_params) {
-    const std::string diff = FeatureMismatch(im.params, e.params);
-    Require(diff.empty(), ErrorCode::kInvalidArgument,
-            "target '" + id + "': feature setting " + diff + " differs from the targets already added (e.g. '" +
-                im.first_id + "'); all targets must share the query-side feature settings");
-  }
+  im.RequireSameFeatures(id, e.params);
   im.Insert(id, std::move(e), nullptr);
   ids_.push_back(id);
 }

@@ -55,6 +55,15 @@ class RecognizerTest : public ::testing::Test {
     }
     return t;
   }
+  // Two runs on one frame give the same targets, inliers and homographies.
+  static void ExpectDeterministic(const Recognizer& rec) {
+    const SceneView v = MakeSceneView(images_->at("coffee"), SceneOptions{}, 5000);
+    const RecognitionResult a = rec.Recognize(v.image), b = rec.Recognize(v.image);
+    ASSERT_EQ(a.found.size(), b.found.size());
+    ASSERT_FALSE(a.found.empty());
+    EXPECT_EQ(a.found[0].inliers, b.found[0].inliers);
+    EXPECT_EQ(cv::norm(cv::Mat(a.found[0].homography), cv::Mat(b.found[0].homography), cv::NORM_INF), 0.0);
+  }
   static inline auto* images_ = new std::map<std::string, cv::Mat>;
   static inline auto* models_ = new std::map<std::string, Model>;
 };
@@ -122,15 +131,7 @@ TEST_F(RecognizerTest, RemovedTargetIsNotFound) {
   EXPECT_TRUE(Find(rec.Recognize(c.image), "coffee"));
 }
 
-TEST_F(RecognizerTest, IsDeterministic) {
-  const Recognizer rec = MakeRecognizer();
-  const SceneView v = MakeSceneView(images_->at("coffee"), SceneOptions{}, 5000);
-  const RecognitionResult a = rec.Recognize(v.image), b = rec.Recognize(v.image);
-  ASSERT_EQ(a.found.size(), b.found.size());
-  ASSERT_FALSE(a.found.empty());
-  EXPECT_EQ(a.found[0].inliers, b.found[0].inliers);
-  EXPECT_EQ(cv::norm(cv::Mat(a.found[0].homography), cv::Mat(b.found[0].homography), cv::NORM_INF), 0.0);
-}
+TEST_F(RecognizerTest, IsDeterministic) { ExpectDeterministic(MakeRecognizer()); }
 
 TEST_F(RecognizerTest, RejectsDuplicatesAndMismatchedFeatures) {
   Recognizer rec = MakeRecognizer();
@@ -236,13 +237,7 @@ TEST_F(RecognizerTest, WordsFindNothingInNonTargetsAndForgetRemovedTargets) {
 }
 
 TEST_F(RecognizerTest, WordsAreDeterministicAndCheckTheVocabulary) {
-  const Recognizer rec = MakeRecognizer(WordsOptions());
-  const SceneView v = MakeSceneView(images_->at("coffee"), SceneOptions{}, 5000);
-  const RecognitionResult a = rec.Recognize(v.image), b = rec.Recognize(v.image);
-  ASSERT_EQ(a.found.size(), b.found.size());
-  ASSERT_FALSE(a.found.empty());
-  EXPECT_EQ(a.found[0].inliers, b.found[0].inliers);
-  EXPECT_EQ(cv::norm(cv::Mat(a.found[0].homography), cv::Mat(b.found[0].homography), cv::NORM_INF), 0.0);
+  ExpectDeterministic(MakeRecognizer(WordsOptions()));
   // A vocabulary of other dimensions cannot hold these models.
   const Vocabulary eight(std::vector<float>(8 * 16, 0.5f), 8);
   Recognizer bad(WordsOptions(), &eight);
