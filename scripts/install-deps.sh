@@ -11,6 +11,7 @@ pkgs=(
   nlohmann-json3-dev       # JSON output
   libfaiss-dev libhnswlib-dev  # nearest-neighbour baselines of bench/mvkp_bench_knn (optional there)
   libsqlite3-dev           # target database (src/mvkp/db)
+  libcpp-httplib-dev       # mvkp serve (museum guide server)
   python3 python3-numpy python3-opencv  # evaluation scripts (eval_pairs.py, contract-check)
 )
 missing=()

@@ -20,5 +20,6 @@ void RegisterDb(CLI::App& app, int* exit_code);
 void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
 void RegisterVocab(CLI::App& app, int* exit_code);
+void RegisterServe(CLI::App& app, int* exit_code);
 
 }  // namespace mvkp::cli

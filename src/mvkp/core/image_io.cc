@@ -128,6 +128,8 @@ void CheckDims(const std::string& name, long long w, long long h, const ImageLim
                   std::to_string(lim.min_side) + "x" + std::to_string(lim.min_side));
 }
 
+cv::Mat Decode(const std::string& path, const std::vector<std::uint8_t>& buf, int flags, const ImageLimits& lim);
+
 cv::Mat Load(const std::string& path, int flags, const ImageLimits& lim) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(ErrorCode::kIo, path + ": no such file");
@@ -141,6 +143,12 @@ cv::Mat Load(const std::string& path, int flags, const ImageLimits& lim) {
   std::vector<std::uint8_t> buf(fsize);
   in.read(reinterpret_cast<char*>(buf.data()), std::streamsize(fsize));
   if (!in) throw Error(ErrorCode::kIo, path + ": read error");
+  return Decode(path, buf, flags, lim);
+}
+
+cv::Mat Decode(const std::string& path, const std::vector<std::uint8_t>& buf, int flags, const ImageLimits& lim) {
+  if (buf.empty()) Bad(path, "empty file");
+  if (std::int64_t(buf.size()) > lim.max_file_bytes) Bad(path, "file is larger than the " + std::to_string(lim.max_file_bytes) + "-byte limit");
   const ImageHeader h = ReadImageHeader(path, buf.data(), buf.size());
   if (h.format == "unknown") Bad(path, "not an image (unrecognised file format)");
   if (h.width || h.height) CheckDims(path, h.width, h.height, lim);
@@ -200,6 +208,10 @@ cv::Mat LoadImageGray(const std::string& path, const ImageLimits& limits) {
 
 cv::Mat LoadImageColor(const std::string& path, const ImageLimits& limits) {
   return Load(path, cv::IMREAD_COLOR, limits);
+}
+
+cv::Mat DecodeImageGray(const std::string& name, const std::vector<std::uint8_t>& bytes, const ImageLimits& limits) {
+  return Decode(name, bytes, cv::IMREAD_GRAYSCALE, limits);
 }
 
 void CheckImage(const cv::Mat& image, const std::string& name, const ImageLimits& limits) {

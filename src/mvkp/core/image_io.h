@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -39,6 +40,10 @@ cv::Mat LoadImageGray(const std::string& path, const ImageLimits& limits = {});
 
 // Loads an image as 8-bit BGR (CV_8UC3), for drawing.
 cv::Mat LoadImageColor(const std::string& path, const ImageLimits& limits = {});
+
+// The same checks and decoding for bytes in memory (e.g. an HTTP body);
+// `name` stands for the file in error messages.
+cv::Mat DecodeImageGray(const std::string& name, const std::vector<std::uint8_t>& bytes, const ImageLimits& limits = {});
 
 // Checks an in-memory image (e.g. from numpy or a camera) against the limits.
 void CheckImage(const cv::Mat& image, const std::string& name, const ImageLimits& limits = {});

@@ -1,0 +1,219 @@
+#!/usr/bin/env python3
+"""HTTP API tests of `mvkp serve` against a server on 127.0.0.1 at a free port.
+
+Happy paths (recognition raw and multipart, temporal focus, exhibits, image,
+admin add / update / delete with a bearer token, metrics) and bad input
+(non-image, truncated and oversized bodies, bad parameters, missing or wrong
+token, unknown ids, duplicate ids), graceful stop on SIGTERM.
+
+Run by CTest with MVKP=<mvkp binary> and SAMPLES=<repo>/samples.
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.error
+import urllib.request
+import uuid
+
+MVKP = os.environ["MVKP"]
+SAMPLES = os.environ["SAMPLES"]
+failures = []
+passed = 0
+
+
+def check(desc, cond, detail=""):
+    global passed
+    if cond:
+        passed += 1
+        print("ok:", desc)
+    else:
+        failures.append(desc)
+        print("FAIL:", desc, detail)
+
+
+def run(*args):
+    r = subprocess.run([MVKP, *args], capture_output=True, text=True, timeout=300)
+    if r.returncode != 0:
+        print(r.stdout, r.stderr)
+        sys.exit("setup failed: mvkp " + " ".join(args))
+
+
+def request(base, method, path, body=None, headers=None):
+    req = urllib.request.Request(base + path, data=body, method=method, headers=headers or {})
+    try:
+        with urllib.request.urlopen(req, timeout=60) as r:
+            return r.status, r.headers.get("Content-Type", ""), r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, e.headers.get("Content-Type", ""), e.read()
+
+
+def multipart(fields):
+    """fields: name -> bytes or str; returns (body, content type)."""
+    b = uuid.uuid4().hex
+    out = b""
+    for k, v in fields.items():
+        if isinstance(v, str):
+            v = v.encode()
+        fn = '; filename="%s"' % k if k == "image" else ""
+        out += ("--%s\r\nContent-Disposition: form-data; name=\"%s\"%s\r\n\r\n" % (b, k, fn)).encode() + v + b"\r\n"
+    out += ("--%s--\r\n" % b).encode()
+    return out, "multipart/form-data; boundary=" + b
+
+
+def start(db, *extra):
+    p = subprocess.Popen([MVKP, "serve", db, "--port", "0", *extra], stderr=subprocess.PIPE, text=True)
+    line = p.stderr.readline()
+    try:
+        port = json.loads(line)["port"]
+    except Exception:
+        p.kill()
+        sys.exit("server did not start: " + line)
+    return p, "http://127.0.0.1:%d" % port
+
+
+def stop(p):
+    p.send_signal(signal.SIGTERM)
+    try:
+        rc = p.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        rc = None
+    rest = p.stderr.read()
+    return rc, rest
+
+
+with tempfile.TemporaryDirectory() as t:
+    db = os.path.join(t, "museum.db")
+    run("db", "create", db)
+    run("db", "add", db, "--id", "starry", "--image", SAMPLES + "/starry_night.jpg", "--title", "The Starry Night",
+        "--artist", "Vincent van Gogh", "--year", "1889", "--url", "https://example.org/starry")
+    run("db", "add", db, "--id", "building", "--image", SAMPLES + "/building.jpg", "--title", "Building")
+    run("synth", SAMPLES + "/starry_night.jpg", "--n", "2", "--seed", "5", "--target-size", "0", "-o", t + "/s")
+    run("synth", SAMPLES + "/coffee.jpg", "--n", "1", "--seed", "6", "--target-size", "0", "-o", t + "/c")
+    view = open(t + "/s/view_0000.png", "rb").read()
+    coffee_view = open(t + "/c/view_0000.png", "rb").read()
+    baboon = open(SAMPLES + "/baboon.jpg", "rb").read()
+    token = "s3cret-token-for-tests-0123456789"
+    with open(t + "/token", "w") as f:
+        f.write(token + "\n")
+
+    p, base = start(db, "--admin-token-file", t + "/token", "--max-body-mb", "1")
+    try:
+        s, ct, b = request(base, "GET", "/healthz")
+        check("healthz 200 with 2 exhibits", s == 200 and json.loads(b)["exhibits"] == 2, b)
+
+        # Recognition: raw body, multipart, a non-target.
+        s, ct, b = request(base, "POST", "/api/recognize", view, {"Content-Type": "image/png"})
+        j = json.loads(b) if s == 200 else {}
+        f = j.get("found", [])
+        check("recognize (raw PNG): starry with its information and outline",
+              s == 200 and ct.startswith("application/json") and len(f) >= 1 and f[0]["id"] == "starry"
+              and f[0]["title"] == "The Starry Night" and f[0]["artist"] == "Vincent van Gogh"
+              and f[0]["url"] == "https://example.org/starry" and len(f[0]["outline"]) == 4
+              and f[0]["inliers"] >= 12 and j["time_ms"]["total"] > 0, b[:300])
+        body, ctype = multipart({"image": view})
+        s, ct, b = request(base, "POST", "/api/recognize", body, {"Content-Type": ctype})
+        check("recognize (multipart): starry", s == 200 and json.loads(b)["found"][0]["id"] == "starry", b[:200])
+        s, ct, b = request(base, "POST", "/api/recognize?prev=starry", view, {"Content-Type": "image/png"})
+        check("recognize with prev=starry: temporal focus finds it",
+              s == 200 and json.loads(b)["mode"] == "focus" and json.loads(b)["found"][0]["id"] == "starry", b[:200])
+        s, ct, b = request(base, "POST", "/api/recognize", baboon, {"Content-Type": "image/jpeg"})
+        check("recognize a non-target: found is empty", s == 200 and json.loads(b)["found"] == [], b[:200])
+
+        # Bad input: JSON errors with 4xx.
+        def bad(desc, status, path, body, headers):
+            s, ct, b = request(base, "POST", path, body, headers)
+            ok = s == status and ct.startswith("application/json") and json.loads(b).get("error")
+            check(desc, ok, "%s %s" % (s, b[:200]))
+
+        bad("non-image body: 400", 400, "/api/recognize", b"hello, not an image", {"Content-Type": "image/jpeg"})
+        bad("empty body: 400", 400, "/api/recognize", b"", {"Content-Type": "image/jpeg"})
+        bad("truncated JPEG: 400", 400, "/api/recognize", baboon[: len(baboon) // 3], {"Content-Type": "image/jpeg"})
+        bad("body over --max-body-mb: 413", 413, "/api/recognize", b"\xff" * (2 << 20), {"Content-Type": "image/jpeg"})
+        mp_body, mp_ct = multipart({"other": "x"})
+        bad("multipart without image: 400", 400, "/api/recognize", mp_body, {"Content-Type": mp_ct})
+        bad("bad fx: 400", 400, "/api/recognize?fx=abc", view, {"Content-Type": "image/png"})
+        bad("negative fx: 400", 400, "/api/recognize?fx=-5", view, {"Content-Type": "image/png"})
+
+        # Exhibit information.
+        s, ct, b = request(base, "GET", "/api/exhibits")
+        ids = [e["id"] for e in json.loads(b)["exhibits"]] if s == 200 else []
+        check("exhibits list", s == 200 and ids == ["building", "starry"], b[:200])
+        s, ct, b = request(base, "GET", "/api/exhibits/starry")
+        check("one exhibit", s == 200 and json.loads(b)["year"] == "1889", b[:200])
+        s, ct, b = request(base, "GET", "/api/exhibits/starry/image")
+        check("exhibit image is the stored JPEG", s == 200 and ct == "image/jpeg" and b == open(SAMPLES + "/starry_night.jpg", "rb").read())
+        s, ct, b = request(base, "GET", "/api/exhibits/nope")
+        check("unknown exhibit: 404 JSON", s == 404 and "error" in json.loads(b))
+        s, ct, b = request(base, "GET", "/nowhere")
+        check("unknown path: 404 JSON", s == 404 and "error" in json.loads(b))
+
+        # Admin: token required.
+        add_body, add_ct = multipart({"image": open(SAMPLES + "/coffee.jpg", "rb").read(), "id": "coffee",
+                                      "title": "Coffee", "artist": "A. Barista", "meta": '{"width_m": 0.4}'})
+        s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct})
+        check("admin add without token: 401", s == 401, b)
+        s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct, "Authorization": "Bearer wrong"})
+        check("admin add with a wrong token: 401", s == 401, b)
+        auth = {"Authorization": "Bearer " + token}
+        s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct, **auth})
+        check("admin add: 201, trained and stored", s == 201 and json.loads(b)["id"] == "coffee", b[:200])
+        s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct, **auth})
+        check("admin add of a taken id: 409", s == 409, b)
+        bad_img, bad_ct = multipart({"image": b"not an image", "id": "x"})
+        s, ct, b = request(base, "POST", "/api/exhibits", bad_img, {"Content-Type": bad_ct, **auth})
+        check("admin add of a non-image: 400", s == 400 and "error" in json.loads(b), b)
+        s, ct, b = request(base, "POST", "/api/recognize", coffee_view, {"Content-Type": "image/png"})
+        check("the added exhibit is recognised at once", s == 200 and [x["id"] for x in json.loads(b)["found"]][:1] == ["coffee"], b[:200])
+        s, ct, b = request(base, "PUT", "/api/exhibits/coffee", json.dumps({"title": "Morning Coffee"}).encode(),
+                           {"Content-Type": "application/json", **auth})
+        check("admin update: 200", s == 200 and json.loads(b)["title"] == "Morning Coffee", b[:200])
+        s, ct, b = request(base, "PUT", "/api/exhibits/coffee", b"{not json", {"Content-Type": "application/json", **auth})
+        check("admin update with bad JSON: 400", s == 400, b)
+        s, ct, b = request(base, "PUT", "/api/exhibits/nope", b"{}", {"Content-Type": "application/json", **auth})
+        check("admin update of an unknown id: 404", s == 404, b)
+        s, ct, b = request(base, "DELETE", "/api/exhibits/coffee", None, auth)
+        check("admin delete: 204", s == 204, b)
+        s, ct, b = request(base, "GET", "/api/exhibits/coffee")
+        check("deleted exhibit: 404", s == 404)
+        s, ct, b = request(base, "POST", "/api/recognize", coffee_view, {"Content-Type": "image/png"})
+        check("the deleted exhibit is no longer recognised", s == 200 and all(x["id"] != "coffee" for x in json.loads(b)["found"]))
+
+        s, ct, b = request(base, "GET", "/metrics")
+        text = b.decode()
+        check("metrics: request counts and latency histograms",
+              s == 200 and 'mvkp_requests_total{route="/api/recognize",status="200"}' in text
+              and 'mvkp_request_seconds_bucket{route="/api/recognize",le="+Inf"}' in text and "mvkp_exhibits 2" in text,
+              text[:400])
+    finally:
+        rc, rest = stop(p)
+    check("SIGTERM: graceful stop, exit 0", rc == 0 and '"stopped"' in rest, rest[-300:])
+    logs = [json.loads(l) for l in rest.splitlines() if l.startswith("{") and '"method"' in l]
+    check("one JSON log line per request, with status and ms",
+          len(logs) >= 20 and all("status" in l and "ms" in l and "route" in l for l in logs))
+
+    # Without a token file the admin API is off, not open.
+    p, base = start(db)
+    try:
+        s, ct, b = request(base, "DELETE", "/api/exhibits/starry", None, {"Authorization": "Bearer anything"})
+        check("no token file: admin API off (403)", s == 403)
+        s, ct, b = request(base, "GET", "/api/exhibits/starry")
+        check("... and nothing was deleted", s == 200)
+    finally:
+        stop(p)
+
+    # Bad start: missing database, short token.
+    r = subprocess.run([MVKP, "serve", t + "/none.db", "--port", "0"], capture_output=True, text=True, timeout=30)
+    check("missing database: exit 1, one error line", r.returncode == 1 and "none.db" in r.stderr, r.stderr)
+    with open(t + "/short", "w") as f:
+        f.write("abc")
+    r = subprocess.run([MVKP, "serve", db, "--port", "0", "--admin-token-file", t + "/short"], capture_output=True,
+                       text=True, timeout=30)
+    check("short admin token: refused", r.returncode == 1 and "16 characters" in r.stderr, r.stderr)
+
+print("%d passed, %d failed" % (passed, len(failures)))
+sys.exit(1 if failures else 0)
