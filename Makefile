@@ -4,7 +4,7 @@ PREFIX ?= /usr/local
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure build test demo install uninstall clean
+.PHONY: all deps configure build test demo install uninstall clean loadtest
 
 all: build
 
@@ -33,3 +33,8 @@ uninstall:
 
 clean:
 	rm -rf $(BUILD)
+
+# 16 clients for 60 s against `mvkp serve` on loopback (issue 7): throughput,
+# p50/p99, errors, RSS; then the concurrency bound exceeded on purpose.
+loadtest: build
+	@bash scripts/loadtest.sh $(BUILD)/mvkp out/loadtest 60

@@ -206,6 +206,36 @@ with tempfile.TemporaryDirectory() as t:
     finally:
         stop(p)
 
+    # Over the concurrency bound: 503 at once, the rest served, the server alive.
+    p, base = start(db, "--threads", "1", "--max-inflight", "1")
+    try:
+        import threading
+        codes = []
+        gate = threading.Barrier(12)
+
+        def one():
+            gate.wait()
+            codes.append(request(base, "POST", "/api/recognize", view, {"Content-Type": "image/png"})[0])
+
+        ts = [threading.Thread(target=one) for _ in range(12)]
+        [x.start() for x in ts]
+        [x.join() for x in ts]
+        check("12 requests at once with --max-inflight 1: some 503, some 200, nothing else",
+              503 in codes and 200 in codes and set(codes) <= {200, 503}, codes)
+        # Binary garbage as a request line must not bring the server down.
+        import socket
+        with socket.create_connection(("127.0.0.1", int(base.rsplit(":", 1)[1])), timeout=10) as sock:
+            sock.sendall(b"POST /\x89PNG\xff\xfe HTTP/1.1\r\nHost: x\r\nContent-Length: 3\r\n\r\n\x89\x00\xff")
+            try:
+                sock.recv(4096)
+            except OSError:
+                pass
+        s, ct, b = request(base, "GET", "/healthz")
+        check("garbage request line: the server still answers", s == 200)
+    finally:
+        rc, _ = stop(p)
+    check("... and stops cleanly", rc == 0)
+
     # Bad start: missing database, short token.
     r = subprocess.run([MVKP, "serve", t + "/none.db", "--port", "0"], capture_output=True, text=True, timeout=30)
     check("missing database: exit 1, one error line", r.returncode == 1 and "none.db" in r.stderr, r.stderr)

@@ -109,9 +109,12 @@ class Metrics {
   std::map<std::string, Hist> hist_;
 };
 
+// JSON text; invalid UTF-8 in stored strings becomes U+FFFD instead of an exception.
+std::string Dump(const Json& j) { return j.dump(-1, ' ', false, Json::error_handler_t::replace); }
+
 void SendError(httplib::Response& res, int status, const std::string& message) {
   res.status = status;
-  res.set_content(Json{{"error", message}}.dump(), "application/json");
+  res.set_content(Dump(Json{{"error", message}}), "application/json");
 }
 
 Json InfoJson(const TargetInfo& t) {
@@ -133,6 +136,40 @@ std::string RouteOf(const httplib::Request& req) {
 }
 
 std::atomic<bool> g_stop{false};
+thread_local bool t_overloaded = false;  // this connection came over the bound: answer 503
+
+// httplib hands each accepted connection to a task queue; its ThreadPool
+// queues without bound, so excess load would pile up unseen by the handlers.
+// This queue lets at most max_pending connections wait for or occupy the
+// workers; the others go to one extra thread that answers 503 at once.
+class BoundedQueue : public httplib::TaskQueue {
+ public:
+  BoundedQueue(std::size_t threads, std::size_t max_pending) : workers_(threads), rejecter_(1), max_(max_pending) {}
+  void enqueue(std::function<void()> fn) override {
+    if (pending_.fetch_add(1) >= max_) {
+      pending_.fetch_sub(1);
+      rejecter_.enqueue([fn] {
+        t_overloaded = true;
+        fn();
+        t_overloaded = false;
+      });
+      return;
+    }
+    workers_.enqueue([this, fn] {
+      fn();
+      pending_.fetch_sub(1);
+    });
+  }
+  void shutdown() override {
+    workers_.shutdown();
+    rejecter_.shutdown();
+  }
+
+ private:
+  httplib::ThreadPool workers_, rejecter_;
+  std::size_t max_;
+  std::atomic<std::size_t> pending_{0};
+};
 thread_local std::chrono::steady_clock::time_point t_request_start;  // set before routing, read by the logger
 extern "C" void OnSignal(int) { g_stop = true; }
 
@@ -153,8 +190,12 @@ class GuideServer {
 
   int Run() {
     httplib::Server srv;
-    srv.new_task_queue = [this] { return new httplib::ThreadPool(std::size_t(a_.threads)); };
+    srv.new_task_queue = [this] { return new BoundedQueue(std::size_t(a_.threads), std::size_t(a_.max_inflight)); };
     srv.set_payload_max_length(a_.max_body_mb << 20);
+    // A worker serves one connection at a time: short keep-alive keeps a few
+    // busy clients from holding every worker while others queue.
+    srv.set_keep_alive_max_count(2);
+    srv.set_keep_alive_timeout(1);
     srv.set_read_timeout(a_.timeout_s, 0);
     srv.set_write_timeout(a_.timeout_s, 0);
     srv.set_pre_routing_handler([](const httplib::Request&, httplib::Response&) {
@@ -184,7 +225,7 @@ class GuideServer {
       SendError(res, res.status, "HTTP " + std::to_string(res.status));
     });
     srv.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
-      res.set_content(Json{{"status", "ok"}, {"exhibits", Size()}}.dump(), "application/json");
+      res.set_content(Dump(Json{{"status", "ok"}, {"exhibits", Size()}}), "application/json");
     });
     srv.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
       res.set_content(metrics_.Text(Size(), inflight_.load()), "text/plain; version=0.0.4");
@@ -193,7 +234,7 @@ class GuideServer {
     srv.Get("/api/exhibits", [this](const httplib::Request&, httplib::Response& res) {
       Json list = Json::array();
       for (const auto& t : TargetStore::Open(a_.db).List()) list.push_back(InfoJson(t));
-      res.set_content(Json{{"exhibits", list}}.dump(), "application/json");
+      res.set_content(Dump(Json{{"exhibits", list}}), "application/json");
     });
     srv.Get(R"(/api/exhibits/([^/]+)/image)", [this](const httplib::Request& req, httplib::Response& res) {
       const TargetStore store = TargetStore::Open(a_.db);
@@ -206,7 +247,7 @@ class GuideServer {
     srv.Get(R"(/api/exhibits/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
       const TargetStore store = TargetStore::Open(a_.db);
       if (!store.Contains(req.matches[1])) return SendError(res, 404, "no exhibit '" + std::string(req.matches[1]) + "'");
-      res.set_content(InfoJson(store.Get(req.matches[1], false).info).dump(), "application/json");
+      res.set_content(Dump(InfoJson(store.Get(req.matches[1], false).info)), "application/json");
     });
     srv.Post("/api/exhibits", [this](const httplib::Request& req, httplib::Response& res) { AddExhibit(req, res); });
     srv.Put(R"(/api/exhibits/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) { UpdateExhibit(req, res); });
@@ -288,11 +329,13 @@ class GuideServer {
   }
 
   void Recognize(const httplib::Request& req, httplib::Response& res) {
-    // Bounded concurrency: refuse at once rather than queue.
-    if (inflight_.fetch_add(1) >= a_.max_inflight) {
-      inflight_.fetch_sub(1);
+    // Bounded concurrency: refuse at once rather than queue (a connection
+    // over the bound is served by the rejecting thread: cheap routes answer,
+    // recognition does not).
+    if (t_overloaded || inflight_.fetch_add(1) >= a_.max_inflight) {
+      if (!t_overloaded) inflight_.fetch_sub(1);
       res.set_header("Retry-After", "1");
-      return SendError(res, 503, "busy: " + std::to_string(a_.max_inflight) + " recognitions already running");
+      return SendError(res, 503, "busy: " + std::to_string(a_.max_inflight) + " requests already being served");
     }
     struct Release {
       std::atomic<int>& n;
@@ -374,17 +417,20 @@ class GuideServer {
       }
       found.push_back(x);
     }
-    res.set_content(Json{{"found", found},
-                         {"mode", mode},
-                         {"width", gray.cols},
-                         {"height", gray.rows},
-                         {"time_ms", {{"recognize", r.total_ms()}, {"total", total.ElapsedMs()}}}}
-                        .dump(),
+    res.set_content(Dump(Json{{"found", found},
+                              {"mode", mode},
+                              {"width", gray.cols},
+                              {"height", gray.rows},
+                              {"time_ms", {{"recognize", r.total_ms()}, {"total", total.ElapsedMs()}}}}),
                     "application/json");
   }
 
   void AddExhibit(const httplib::Request& req, httplib::Response& res) {
     if (!Authorised(req, res)) return;
+    if (t_overloaded) {
+      res.set_header("Retry-After", "1");
+      return SendError(res, 503, "busy: try again");
+    }
     if (!req.is_multipart_form_data() || !req.has_file("image") || !req.has_file("id"))
       return SendError(res, 400, "expected multipart fields 'image' and 'id' (and optional title, artist, year, url, meta)");
     auto field = [&](const char* k) { return req.has_file(k) ? req.get_file_value(k).content : std::string(); };
@@ -420,7 +466,7 @@ class GuideServer {
     }
     Reload();
     res.status = 201;
-    res.set_content(InfoJson(TargetStore::Open(a_.db).Get(info.id, false).info).dump(), "application/json");
+    res.set_content(Dump(InfoJson(TargetStore::Open(a_.db).Get(info.id, false).info)), "application/json");
   }
 
   void UpdateExhibit(const httplib::Request& req, httplib::Response& res) {
@@ -456,7 +502,7 @@ class GuideServer {
       return SendError(res, 400, e.what());
     }
     Reload();
-    res.set_content(InfoJson(TargetStore::Open(a_.db).Get(req.matches[1], false).info).dump(), "application/json");
+    res.set_content(Dump(InfoJson(TargetStore::Open(a_.db).Get(req.matches[1], false).info)), "application/json");
   }
 
   void DeleteExhibit(const httplib::Request& req, httplib::Response& res) {
@@ -476,7 +522,7 @@ class GuideServer {
                  {"bytes_in", req.body.size()}, {"bytes_out", res.body.size()}, {"remote", req.remote_addr}};
     line["ms"] = ms;
     metrics_.Observe(route, res.status, ms / 1000.0);
-    std::fprintf(stderr, "%s\n", line.dump().c_str());
+    std::fprintf(stderr, "%s\n", Dump(line).c_str());
   }
 
   ServeArgs a_;
@@ -500,7 +546,9 @@ void RegisterServe(CLI::App& app, int* code) {
   c->add_option("--host", a->host, "address to listen on")->capture_default_str();
   c->add_option("--port", a->port, "port (0: any free port, printed at start)")->capture_default_str();
   c->add_option("--threads", a->threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 256));
-  c->add_option("--max-inflight", a->max_inflight, "recognitions at once before 503 (0: 2 x threads)")->capture_default_str();
+  c->add_option("--max-inflight", a->max_inflight,
+                "connections served or waiting at once; more get 503 at once (0: 2 x threads)")
+      ->capture_default_str();
   c->add_option("--admin-token-file", a->token_file, "file holding the admin bearer token (admin API off without it)");
   c->add_option("--max-body-mb", a->max_body_mb, "largest request body, MiB")->capture_default_str()->check(CLI::Range(1, 1024));
   c->add_option("--max-pixels", a->max_pixels, "largest image, pixels")->capture_default_str();
