@@ -24,18 +24,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Recognition targets are trained smaller and over a wider scale range than
-// `mvkp train`'s defaults: in a gallery photo a painting often spans a quarter
-// to a half of the frame, below the default smallest view scale (0.4) of a
-// 640 px target. Measured on the gallery scenes of docs/gallery.md: recall
-// 28.6 % with the train defaults, 89 % with these.
-TrainOptions DbTrainDefaults() {
-  TrainOptions t;
-  t.max_object_side = 320;
-  t.min_scale = 0.25;
-  return t;
-}
-
 struct DbArgs {
   std::string db, id, image, title, artist, year, url, meta = "{}", list, output;
   bool json = false;
@@ -44,20 +32,7 @@ struct DbArgs {
 
 // Trains one target and packs it as a store record.
 TargetRecord MakeRecord(TargetInfo info, const std::string& image_path, const TrainOptions& train) {
-  const cv::Mat gray = LoadImageGray(image_path);
-  TrainOptions t = train;
-  t.progress = nullptr;
-  const Model model = TrainNamed(image_path, gray, t);
-  TargetRecord r;
-  info.width = gray.cols;
-  info.height = gray.rows;
-  r.info = std::move(info);
-  r.image = ReadFileBytes(image_path);
-  r.model = SerializeModel(model);
-  // The word search's compact form, so `recognize --search words` need not
-  // decode thousands of models (a few KB more per target).
-  r.encodings.push_back({kWordsEncoding, Recognizer(RecognizerOptions::Words()).Encode(model)});
-  return r;
+  return MakeTargetRecord(std::move(info), ReadFileBytes(image_path), LoadImageGray(image_path), train, image_path);
 }
 
 nlohmann::json InfoJson(const TargetInfo& i) {

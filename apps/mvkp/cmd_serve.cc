@@ -449,17 +449,8 @@ class GuideServer {
       const cv::Mat gray = DecodeImageGray("image", std::vector<std::uint8_t>(img.begin(), img.end()), lim);
       TargetStore store = TargetStore::Open(a_.db, TargetStore::Mode::kReadWrite);
       if (store.Contains(info.id)) return SendError(res, 409, "exhibit '" + info.id + "' already exists");
-      TrainOptions to;
-      to.max_object_side = 320;
-      to.min_scale = 0.25;
-      const Model model = Train(gray, to);
-      TargetRecord r;
-      info.width = gray.cols;
-      info.height = gray.rows;
-      r.info = info;
-      r.image.assign(img.begin(), img.end());
-      r.model = SerializeModel(model);
-      r.encodings.push_back({kWordsEncoding, Recognizer(RecognizerOptions::Words()).Encode(model)});
+      const TargetRecord r =
+          MakeTargetRecord(info, std::vector<std::uint8_t>(img.begin(), img.end()), gray, DbTrainDefaults(), "image");
       store.Add(r);  // one transaction
     } catch (const Error& e) {
       return SendError(res, e.code() == ErrorCode::kIo ? 500 : 400, e.what());

@@ -4,8 +4,31 @@
 
 #include "mvkp/core/error.h"
 #include "mvkp/model/model.h"
+#include "output.h"
 
 namespace mvkp::cli {
+
+TrainOptions DbTrainDefaults() {
+  TrainOptions t;
+  t.max_object_side = 320;
+  t.min_scale = 0.25;
+  return t;
+}
+
+TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, const cv::Mat& gray,
+                              const TrainOptions& train, const std::string& name) {
+  TrainOptions t = train;
+  t.progress = nullptr;
+  const Model model = TrainNamed(name, gray, t);
+  TargetRecord r;
+  info.width = gray.cols;
+  info.height = gray.rows;
+  r.info = std::move(info);
+  r.image = std::move(image);
+  r.model = SerializeModel(model);
+  r.encodings.push_back({kWordsEncoding, Recognizer(RecognizerOptions::Words()).Encode(model)});
+  return r;
+}
 
 std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::string& db,
                         const std::function<void(const TargetInfo&, int, int)>& each) {

@@ -1,16 +1,34 @@
-// Loading a target database into a recogniser (recognize, video).
+// Target database helpers of the CLI: making records (db add / import, the
+// server's admin add) and loading a database into a recogniser (recognize,
+// video, serve).
 #pragma once
 
 #include <functional>
 #include <string>
 
+#include <opencv2/core.hpp>
+
 #include "mvkp/db/target_store.h"
 #include "mvkp/recognize/recognizer.h"
+#include "mvkp/train/trainer.h"
 
 namespace mvkp::cli {
 
 // The kind under which `db add` / `db import` store Recognizer::Encode bytes.
 constexpr const char* kWordsEncoding = "words";
+
+// Recognition targets are trained smaller and over a wider scale range than
+// `mvkp train`'s defaults: in a gallery photo a painting often spans a quarter
+// to a half of the frame, below the default smallest view scale (0.4) of a
+// 640 px target. Measured on the gallery scenes of docs/gallery.md: recall
+// 28.6 % with the train defaults, 89 % with these.
+TrainOptions DbTrainDefaults();
+
+// Trains a target from its image (`gray`, decoded from `image`) and packs it
+// with its model and its word encoding (so `recognize --search words` need
+// not decode thousands of models). `name` names the image in errors.
+TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, const cv::Mat& gray,
+                              const TrainOptions& train, const std::string& name);
 
 // Adds every target of `store` to `rec` and calls `each(info, width, height)`
 // (the target's size in its model's pixels) for it. The word search takes the
