@@ -15,6 +15,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "commands.h"
+#include "db_load.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/db/target_store.h"
@@ -55,13 +56,11 @@ int RunVideo(VideoArgs& a) {
   std::map<std::string, std::string> titles;
   Recognizer rec;
   std::map<std::string, cv::Size> sizes;
-  for (const auto& t : store.LoadAll()) {
-    const Model model = DeserializeModel(t.model.data(), t.model.size(), a.db + ": target '" + t.info.id + "'");
-    a.pose.AddTarget(t.info.id, t.info.meta, model.object_width, model.object_height, a.db);
-    rec.Add(t.info.id, model);
-    sizes[t.info.id] = cv::Size(model.object_width, model.object_height);
-    titles[t.info.id] = t.info.title.empty() ? t.info.id : t.info.title;
-  }
+  LoadTargets(store, rec, a.db, [&](const TargetInfo& info, int width, int height) {
+    a.pose.AddTarget(info.id, info.meta, width, height, a.db);
+    sizes[info.id] = cv::Size(width, height);
+    titles[info.id] = info.title.empty() ? info.id : info.title;
+  });
   Require(rec.size() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
   const double load_ms = load.ElapsedMs();
 
