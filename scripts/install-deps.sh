@@ -12,6 +12,7 @@ pkgs=(
   libfaiss-dev libhnswlib-dev  # nearest-neighbour baselines of bench/mvkp_bench_knn (optional there)
   libsqlite3-dev           # target database (src/mvkp/db)
   libcpp-httplib-dev       # mvkp serve (museum guide server)
+  nodejs                   # web client checks (tests/serve_api_test.py)
   python3 python3-numpy python3-opencv  # evaluation scripts (eval_pairs.py, contract-check)
 )
 missing=()

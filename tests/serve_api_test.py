@@ -103,6 +103,18 @@ with tempfile.TemporaryDirectory() as t:
 
     p, base = start(db, "--admin-token-file", t + "/token", "--max-body-mb", "1")
     try:
+        s, ct, b = request(base, "GET", "/")
+        check("the web client at /", s == 200 and ct.startswith("text/html") and b'id="overlay"' in b and b"/app.js" in b)
+        s, ct, b = request(base, "GET", "/app.js")
+        check("app.js: posts frames to /api/recognize with the previous exhibit",
+              s == 200 and ct.startswith("text/javascript") and b"/api/recognize" in b and b"prev=" in b
+              and b"getUserMedia" in b)
+        with open(t + "/app.js", "wb") as f:
+            f.write(b)
+        r = subprocess.run(["node", "--check", t + "/app.js"], capture_output=True, text=True)
+        check("app.js is valid JavaScript (node --check)", r.returncode == 0, r.stderr)
+        s, ct, b = request(base, "GET", "/style.css")
+        check("style.css", s == 200 and ct.startswith("text/css"))
         s, ct, b = request(base, "GET", "/healthz")
         check("healthz 200 with 2 exhibits", s == 200 and json.loads(b)["exhibits"] == 2, b)
 

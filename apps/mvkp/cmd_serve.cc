@@ -43,6 +43,7 @@
 #include "mvkp/recognize/recognizer.h"
 #include "mvkp/train/trainer.h"
 #include "output.h"
+#include "web_assets.h"
 
 namespace mvkp::cli {
 namespace {
@@ -223,6 +224,12 @@ class GuideServer {
                                         : "request body larger than " + std::to_string(a_.max_body_mb) + " MiB");
       }
       SendError(res, res.status, "HTTP " + std::to_string(res.status));
+    });
+    // The web client (phone-first, plain HTML/JS) at "/".
+    srv.Get(R"(/|/index\.html|/app\.js|/style\.css)", [](const httplib::Request& req, httplib::Response& res) {
+      const WebAsset* w = FindWebAsset(req.path);
+      res.set_header("Cache-Control", "no-cache");
+      res.set_content(std::string(w->body), std::string(w->content_type).c_str());
     });
     srv.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
       res.set_content(Dump(Json{{"status", "ok"}, {"exhibits", Size()}}), "application/json");

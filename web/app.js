@@ -1,0 +1,127 @@
+// mvkp museum guide client: the rear camera's frames go to /api/recognize
+// (a new one whenever the previous answer is back), the recognised
+// painting's outline is drawn over the video and its information shown on a
+// card (asked once per exhibit, then cached). No framework.
+'use strict';
+(function () {
+  const MAX_SIDE = 640;            // frames are downscaled to this longest side
+  const video = document.getElementById('video');
+  const overlay = document.getElementById('overlay');
+  const ctx = overlay.getContext('2d');
+  const hint = document.getElementById('hint');
+  const card = document.getElementById('card');
+  const debug = document.getElementById('debug');
+  const params = new URLSearchParams(location.search);
+  const showDebug = params.get('debug') === '1';
+  const info = new Map();          // exhibit id -> information (fetched once)
+  const grab = document.createElement('canvas');
+  let prev = '';                   // last exhibit seen: temporal focus on the server
+  let shown = '';
+  let lastMs = 0, frames = 0;
+
+  debug.hidden = !showDebug;
+
+  async function exhibit(id) {
+    if (!info.has(id)) {
+      const r = await fetch('/api/exhibits/' + encodeURIComponent(id));
+      info.set(id, r.ok ? await r.json() : { id: id, title: id });
+    }
+    return info.get(id);
+  }
+
+  async function showCard(id) {
+    if (id === shown) return;
+    shown = id;
+    if (!id) { card.hidden = true; return; }
+    const e = await exhibit(id);
+    if (shown !== id) return;
+    document.getElementById('card-title').textContent = e.title || e.id;
+    document.getElementById('card-artist').textContent = e.artist || '';
+    document.getElementById('card-year').textContent = e.year || '';
+    const link = document.getElementById('card-link');
+    link.hidden = !e.url;
+    if (e.url) link.href = e.url;
+    card.hidden = false;
+  }
+
+  // Maps frame pixels to overlay pixels (the video is letterboxed by object-fit: contain).
+  function draw(found, fw, fh) {
+    overlay.width = overlay.clientWidth * devicePixelRatio;
+    overlay.height = overlay.clientHeight * devicePixelRatio;
+    ctx.clearRect(0, 0, overlay.width, overlay.height);
+    const s = Math.min(overlay.width / fw, overlay.height / fh);
+    const ox = (overlay.width - fw * s) / 2, oy = (overlay.height - fh * s) / 2;
+    ctx.lineWidth = 4 * devicePixelRatio;
+    ctx.strokeStyle = '#3f3';
+    ctx.fillStyle = '#3f3';
+    ctx.font = (18 * devicePixelRatio) + 'px system-ui, sans-serif';
+    for (const f of found) {
+      ctx.beginPath();
+      f.outline.forEach(([x, y], i) => (i ? ctx.lineTo : ctx.moveTo).call(ctx, ox + x * s, oy + y * s));
+      ctx.closePath();
+      ctx.stroke();
+      const [x0, y0] = f.outline[0];
+      ctx.fillText(f.title || f.id, ox + x0 * s + 6, oy + y0 * s - 8);
+    }
+  }
+
+  async function recognise(source, w, h) {
+    const scale = Math.min(1, MAX_SIDE / Math.max(w, h));
+    grab.width = Math.round(w * scale);
+    grab.height = Math.round(h * scale);
+    grab.getContext('2d').drawImage(source, 0, 0, grab.width, grab.height);
+    const blob = await new Promise((ok) => grab.toBlob(ok, 'image/jpeg', 0.85));
+    const t0 = performance.now();
+    const r = await fetch('/api/recognize' + (prev ? '?prev=' + encodeURIComponent(prev) : ''),
+                          { method: 'POST', headers: { 'Content-Type': 'image/jpeg' }, body: blob });
+    lastMs = performance.now() - t0;
+    const j = r.ok ? await r.json() : { found: [] };
+    const found = j.found || [];
+    draw(found, grab.width, grab.height);
+    hint.hidden = found.length > 0;
+    prev = found.length ? found[0].id : '';
+    await showCard(prev);
+    frames++;
+    if (showDebug) {
+      debug.textContent = 'round trip ' + lastMs.toFixed(0) + ' ms\nserver ' +
+        (j.time_ms ? j.time_ms.total.toFixed(1) : '-') + ' ms\nframes ' + frames + (prev ? '\n' + prev : '');
+    }
+    return found;
+  }
+
+  async function loop() {
+    try {
+      if (video.readyState >= 2 && video.videoWidth) await recognise(video, video.videoWidth, video.videoHeight);
+    } catch (e) {
+      hint.textContent = 'Connection problem, retrying';
+      hint.hidden = false;
+      await new Promise((ok) => setTimeout(ok, 1000));
+    }
+    requestAnimationFrame(loop);   // the next frame once the answer is back
+  }
+
+  function fallback() {
+    document.getElementById('upload').hidden = false;
+    hint.textContent = 'No camera available';
+    document.getElementById('file').addEventListener('change', (ev) => {
+      const file = ev.target.files[0];
+      if (!file) return;
+      const img = new Image();
+      img.onload = async () => {
+        video.hidden = true;
+        document.getElementById('upload').hidden = true;
+        prev = '';
+        const found = await recognise(img, img.naturalWidth, img.naturalHeight);
+        if (!found.length) { hint.textContent = 'No painting recognised in this photo'; hint.hidden = false; }
+        URL.revokeObjectURL(img.src);
+      };
+      img.src = URL.createObjectURL(file);
+    });
+  }
+
+  if (!navigator.mediaDevices || !navigator.mediaDevices.getUserMedia) { fallback(); return; }
+  navigator.mediaDevices.getUserMedia({ video: { facingMode: { ideal: 'environment' }, width: { ideal: 1280 } }, audio: false })
+    .then((stream) => { video.srcObject = stream; return video.play(); })
+    .then(loop)
+    .catch(fallback);
+})();
