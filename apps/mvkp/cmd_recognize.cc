@@ -32,14 +32,6 @@ struct RecognizeArgs {
   PoseSupport pose;  // --camera, --width-m
 };
 
-nlohmann::json RecognitionJson(const Recognition& f, const std::string& title) {
-  nlohmann::json h = nlohmann::json::array(), outline = nlohmann::json::array();
-  for (int i = 0; i < 3; ++i) h.push_back({f.homography(i, 0), f.homography(i, 1), f.homography(i, 2)});
-  for (const auto& p : f.outline) outline.push_back({p.x, p.y});
-  return {{"id", f.id},       {"title", title},         {"homography", h}, {"outline", outline},
-          {"inliers", f.inliers}, {"votes", f.votes}, {"score", f.score}};
-}
-
 cv::Mat DrawRecognition(const cv::Mat& frame_bgr, const RecognitionResult& r,
                         const std::map<std::string, std::string>& titles) {
   cv::Mat img = frame_bgr.clone();

@@ -43,6 +43,7 @@
 #include "mvkp/recognize/recognizer.h"
 #include "mvkp/train/trainer.h"
 #include "output.h"
+#include "pose_cli.h"
 #include "web_assets.h"
 
 namespace mvkp::cli {
@@ -399,12 +400,10 @@ class GuideServer {
     Json found = Json::array();
     for (const auto& f : r.found) {
       const TargetInfo& t = info_.at(f.id);
-      Json outline = Json::array(), h = Json::array();
-      for (const auto& p : f.outline) outline.push_back({p.x, p.y});
-      for (int i = 0; i < 3; ++i) h.push_back({f.homography(i, 0), f.homography(i, 1), f.homography(i, 2)});
-      Json x = {{"id", f.id},         {"title", t.title},   {"artist", t.artist},   {"year", t.year},
-                {"url", t.url},       {"outline", outline}, {"homography", h},      {"inliers", f.inliers},
-                {"score", f.score}};
+      Json x = RecognitionJson(f, t.title);
+      x["artist"] = t.artist;
+      x["year"] = t.year;
+      x["url"] = t.url;
       if (cam) {
         double w = width_m;
         try {
@@ -415,11 +414,7 @@ class GuideServer {
         if (w > 0) {
           const cv::Size s = size_.at(f.id);
           const Pose p = EstimatePose(f.homography, s.width, s.height, w, *cam);
-          if (p.ok)
-            x["pose"] = {{"rvec", {p.rvec[0], p.rvec[1], p.rvec[2]}},
-                         {"tvec", {p.tvec[0], p.tvec[1], p.tvec[2]}},
-                         {"distance_m", p.distance},
-                         {"reprojection_px", p.reprojection_px}};
+          if (p.ok) x["pose"] = PoseSupport::Json(p);
         }
       }
       found.push_back(x);

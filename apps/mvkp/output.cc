@@ -164,4 +164,12 @@ void Progress(const std::string& what, int done, int total) {
   std::fflush(stderr);
 }
 
+nlohmann::json RecognitionJson(const Recognition& f, const std::string& title) {
+  nlohmann::json h = nlohmann::json::array(), outline = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) h.push_back({f.homography(i, 0), f.homography(i, 1), f.homography(i, 2)});
+  for (const auto& p : f.outline) outline.push_back({p.x, p.y});
+  return {{"id", f.id},       {"title", title},         {"homography", h}, {"outline", outline},
+          {"inliers", f.inliers}, {"votes", f.votes}, {"score", f.score}};
+}
+
 }  // namespace mvkp::cli

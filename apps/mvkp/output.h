@@ -9,6 +9,7 @@
 #include <opencv2/core.hpp>
 
 #include "mvkp/match/matcher.h"
+#include "mvkp/recognize/recognizer.h"
 #include "mvkp/train/trainer.h"
 
 namespace mvkp::cli {
@@ -38,5 +39,9 @@ double Median(std::vector<double> v);
 
 // Progress line on stderr when it is a terminal.
 void Progress(const std::string& what, int done, int total);
+
+// One found target as recognize and serve answer it: id, title, homography,
+// outline, inliers, votes, score.
+nlohmann::json RecognitionJson(const Recognition& f, const std::string& title);
 
 }  // namespace mvkp::cli
