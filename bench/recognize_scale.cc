@@ -238,6 +238,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-locations", ro_base.max_locations, "words: locations kept per target")->capture_default_str();
   app.add_option("--words-per-location", ro_base.words_per_location, "words: postings per location")->capture_default_str();
   app.add_option("--max-hamming", ro_base.max_hamming, "words: signature bits that may differ")->capture_default_str();
+  app.add_option("--probe-words", ro_base.probe_words, "exact: 0 = every centre, N = only those in the N nearest words")
+      ->capture_default_str();
   app.add_option("--query-words", ro_base.query_words, "words: nearest words per query descriptor")->capture_default_str();
   app.add_option("--min-inliers", ro_base.min_inliers, "inliers to accept a target")->capture_default_str();
   auto* max_points_opt = app.add_option("--max-points", ro_base.match.max_points, "query points per frame (words: 600 unless given)");
@@ -374,6 +376,7 @@ int main(int argc, char** argv) {
                                  {"max_locations", ro_base.max_locations},
                                  {"words_per_location", ro_base.words_per_location},
                                  {"max_hamming", ro_base.max_hamming},
+                                 {"probe_words", ro_base.probe_words},
                                  {"query_words", ro_base.query_words}}},
                       {"min_inliers", ro_base.min_inliers},
                       {"max_points", ro_base.match.max_points},

@@ -177,6 +177,9 @@ void RegisterRecognize(CLI::App& app, int* code) {
   c->add_option("--query-words", a->opt.query_words, "words: nearest words looked up per query descriptor")
       ->capture_default_str();
   c->add_option("--max-hamming", a->opt.max_hamming, "words: signature bits (of 20) that may differ")->capture_default_str();
+  c->add_option("--probe-words", a->opt.probe_words,
+                "exact: 0 compares with every centre; N only with those in the query's N nearest words (faster, approximate)")
+      ->capture_default_str();
   c->add_option("--max-locations", a->opt.max_locations, "words: locations stored per target (<= 256)")
       ->capture_default_str();
   c->add_option("--words-per-location", a->opt.words_per_location, "words: postings per location")->capture_default_str();

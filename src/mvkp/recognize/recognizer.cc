@@ -15,6 +15,7 @@
 #include "mvkp/core/timer.h"
 #include "mvkp/describe/features.h"
 #include "mvkp/index/ffva.h"
+#include "mvkp/index/ivf.h"
 
 namespace mvkp {
 
@@ -25,6 +26,7 @@ void RecognizerOptions::Check() const {
           "words per location must be in 1..64");
   Require(query_words >= 1 && query_words <= 8, ErrorCode::kInvalidArgument, "query words must be in 1..8");
   Require(max_hamming >= 0 && max_hamming <= 32, ErrorCode::kInvalidArgument, "max hamming must be in 0..32");
+  Require(probe_words >= 0 && probe_words <= 65536, ErrorCode::kInvalidArgument, "probe words must be in 0..65536");
   Require(max_candidates >= 1 && max_candidates <= 100000, ErrorCode::kInvalidArgument,
           "max candidates must be in 1..100000");
   Require(min_votes >= 4, ErrorCode::kInvalidArgument, "min votes must be >= 4");
@@ -95,6 +97,7 @@ struct Recognizer::Impl {
     int width = 0, height = 0;
     std::vector<std::uint16_t> xy;        // kWords: 2 per kept location, quarter pixels
     std::shared_ptr<const Model> model;   // kExact or keep_models
+    mutable std::vector<std::int32_t> cells;  // kExact with probe_words: each centre's nearest word (cached)
     bool alive = false;
     cv::Point2f location(int loc) const {
       return {xy[2 * std::size_t(loc)] / kLocationScale, xy[2 * std::size_t(loc) + 1] / kLocationScale};
@@ -246,7 +249,29 @@ void Recognizer::Impl::EnsureIndex(const RecognizerOptions& o) const {
       label_loc.push_back(std::int32_t(l));
     }
   }
-  if (!labels.empty()) {
+  if (!labels.empty() && o.probe_words > 0) {
+    // Each centre's word is computed once per target and kept, so a change
+    // re-sorts the lists but quantises only the new targets' centres.
+    std::vector<std::int32_t> cells;
+    cells.reserve(labels.size());
+    std::vector<WordAssignment> wa;
+    for (const auto& t : slots) {
+      if (!t.alive) continue;
+      const Model& m = *t.model;
+      if (t.cells.size() != std::size_t(m.descriptors.rows)) {
+        wa.resize(std::size_t(m.descriptors.rows));
+        vocab->Quantize(m.descriptors.ptr<float>(0), wa.size(), 1, wa.data());
+        t.cells.resize(wa.size());
+        for (std::size_t i = 0; i < wa.size(); ++i) t.cells[i] = wa[i].word;
+      }
+      cells.insert(cells.end(), t.cells.begin(), t.cells.end());
+    }
+    IvfOptions io;
+    io.nprobe = o.probe_words;
+    auto ivf = std::make_unique<IvfIndex>(vocab->word(0), std::size_t(vocab->size()), vocab->dims(), io);
+    ivf->BuildAssigned(data.data(), labels.size(), params.dims, labels.data(), cells.data());
+    index = std::move(ivf);
+  } else if (!labels.empty()) {
     index = MakeIndexByName(o.match.index);
     index->Build(data.data(), labels.size(), params.dims, labels.data());
   }
@@ -453,12 +478,12 @@ struct Recognizer::SearchState {
 Recognizer::Recognizer(const RecognizerOptions& options, const Vocabulary* vocabulary)
     : impl_(std::make_unique<Impl>()), options_(options) {
   options_.Check();
-  if (options_.search == RecognizerSearch::kWords) {
+  if (options_.search == RecognizerSearch::kWords || options_.probe_words > 0) {
     Require(vocabulary == nullptr || vocabulary->dims() > 0, ErrorCode::kInvalidArgument, "recognizer: empty vocabulary");
     impl_->vocab = vocabulary ? vocabulary : &DefaultVocabulary();
     Require(!impl_->vocab->empty(), ErrorCode::kInvalidArgument, "recognizer: empty vocabulary");
-    impl_->lists.resize(std::size_t(impl_->vocab->size()));
   }
+  if (options_.search == RecognizerSearch::kWords) impl_->lists.resize(std::size_t(impl_->vocab->size()));
 }
 Recognizer::~Recognizer() = default;
 Recognizer::Recognizer(Recognizer&&) noexcept = default;
@@ -470,7 +495,7 @@ void Recognizer::Add(const std::string& id, const Model& model) {
   model.Validate("target '" + id + "'");
   im.RequireSameFeatures(id, model.params);
   const bool words = options_.search == RecognizerSearch::kWords;
-  if (words) {
+  if (im.vocab) {
     Require(model.params.dims == im.vocab->dims(), ErrorCode::kInvalidArgument,
             "target '" + id + "': descriptor dims " + std::to_string(model.params.dims) +
                 " differ from the vocabulary's " + std::to_string(im.vocab->dims()));

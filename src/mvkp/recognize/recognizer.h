@@ -79,6 +79,11 @@ struct RecognizerOptions {
   // Matcher (its exact index, half-resolution retry): about 300 KB per target
   // instead of a few KB. kExact always keeps the models.
   bool keep_models = false;
+  // kExact: 0 compares each query descriptor with every target's centres
+  // (exact, FFVA). N > 0 compares it only with the centres that fall in its N
+  // nearest vocabulary words (an inverted file over the vocabulary, IvfIndex):
+  // approximate, and several times faster at a hundred targets.
+  int probe_words = 0;
   int max_candidates = 5;  // targets verified per frame, most votes first
   int min_votes = 8;       // ratio-test matches a target needs to be verified
   int min_inliers = 12;    // RANSAC inliers to accept a target
