@@ -160,7 +160,12 @@ void IvfIndex::SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neig
     for (std::size_t i = 0; i < cells.size(); ++i)
       if (cells[i] >= 0) by_list[fill[std::size_t(cells[i])]++] = std::uint32_t(i / std::size_t(P));
   }
-  std::vector<internal::TopTwo> best(nq, internal::EmptyTopTwo(ratio));
+  // No pruning by `ratio`: skipping rows saves no distance computation in the
+  // kernel, and without it out[1] is the true second neighbour within the
+  // probed lists, so a caller ranking matches by their ratio (the
+  // recogniser's dynamic ratio) sees real ratios, not 0 for "far enough".
+  (void)ratio;
+  std::vector<internal::TopTwo> best(nq, internal::EmptyTopTwo(0.f));
   std::vector<float> qnorm(nq);
   for (std::size_t i = 0; i < nq; ++i) qnorm[i] = internal::SquaredNorm(queries + i * std::size_t(dim_), dim_);
   std::vector<float> q4(4 * std::size_t(dim_));
@@ -180,8 +185,8 @@ void IvfIndex::SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neig
         const std::uint32_t q = by_list[g + std::uint32_t(k)];
         std::copy_n(queries + std::size_t(q) * std::size_t(dim_), dim_, q4.data() + std::size_t(k) * std::size_t(dim_));
         qn[k] = qnorm[q];
-        // Start from the query's running distances so the kernel can skip what
-        // cannot matter (ids -1: only the distances and the label steer it).
+        // Start from the query's running distances so the kernel keeps only
+        // what improves them (ids -1: only the distances and the label steer it).
         t[k] = best[q];
         t[k].id1 = t[k].id2 = -1;
       }

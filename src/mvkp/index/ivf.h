@@ -50,7 +50,9 @@ class IvfIndex final : public KnnIndex {
   std::string name() const override { return "ivf"; }
   const IvfOptions& options() const { return options_; }
 
-  // As KnnIndex, over the probed lists only.
+  // As KnnIndex, over the probed lists only. SearchTwoDistinct ignores
+  // `ratio`: out[1] is always the nearest vector of another label in the
+  // probed lists (exact there, whether or not a ratio test passes).
   void Search(const float* query, int k, Neighbor* out) const override;
   void SearchTwoDistinct(const float* query, Neighbor out[2], float ratio = 0.f) const override;
   void SearchTwoDistinctBatch(const float* queries, std::size_t nq, Neighbor* out, float ratio = 0.f) const override;

@@ -249,7 +249,9 @@ void Recognizer::Impl::EnsureIndex(const RecognizerOptions& o) const {
       label_loc.push_back(std::int32_t(l));
     }
   }
-  if (!labels.empty() && o.probe_words > 0) {
+  // The probed search needs the vocabulary's descriptor space; targets of
+  // another dimension are searched exhaustively.
+  if (!labels.empty() && o.probe_words > 0 && vocab && vocab->dims() == params.dims) {
     // Each centre's word is computed once per target and kept, so a change
     // re-sorts the lists but quantises only the new targets' centres.
     std::vector<std::int32_t> cells;
@@ -495,7 +497,7 @@ void Recognizer::Add(const std::string& id, const Model& model) {
   model.Validate("target '" + id + "'");
   im.RequireSameFeatures(id, model.params);
   const bool words = options_.search == RecognizerSearch::kWords;
-  if (im.vocab) {
+  if (words) {
     Require(model.params.dims == im.vocab->dims(), ErrorCode::kInvalidArgument,
             "target '" + id + "': descriptor dims " + std::to_string(model.params.dims) +
                 " differ from the vocabulary's " + std::to_string(im.vocab->dims()));
@@ -555,6 +557,10 @@ bool Recognizer::Remove(const std::string& id) {
 }
 
 bool Recognizer::Contains(const std::string& id) const { return impl_->by_id.count(id) > 0; }
+
+void Recognizer::Prepare() const {
+  if (options_.search == RecognizerSearch::kExact) impl_->EnsureIndex(options_);
+}
 
 void Recognizer::ShrinkToFit() {
   for (auto& list : impl_->lists) list.shrink_to_fit();

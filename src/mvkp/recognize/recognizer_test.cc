@@ -164,6 +164,7 @@ TEST_F(RecognizerTest, ProbedSearchRecognisesAsTheExhaustiveOneDoes) {
   o.probe_words = DefaultVocabulary().size();
   o.match.dynamic_goal = 0;
   RecognizerOptions e;
+  e.probe_words = 0;
   e.match.dynamic_goal = 0;
   const Recognizer all = MakeRecognizer(o), exact = MakeRecognizer(e);
   const RecognitionResult a = all.Recognize(v.image), b = exact.Recognize(v.image);
