@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """HTTP API tests of `mvkp serve` against a server on 127.0.0.1 at a free port.
 
-Happy paths (recognition raw and multipart, temporal focus, exhibits, image,
-admin add / update / delete with a bearer token, metrics) and bad input
-(non-image, truncated and oversized bodies, bad parameters, missing or wrong
-token, unknown ids, duplicate ids), graceful stop on SIGTERM.
+Happy paths (recognition raw and multipart, temporal focus, exhibits, image
+and thumbnails, admin add / update / delete with a bearer token, target
+quality, the admin page, metrics) and bad input (non-image, truncated and
+oversized bodies, bad parameters, missing or wrong token, unknown ids,
+duplicate ids), graceful stop on SIGTERM.
 
 Run by CTest with MVKP=<mvkp binary> and SAMPLES=<repo>/samples.
 """
@@ -49,6 +50,44 @@ def request(base, method, path, body=None, headers=None):
             return r.status, r.headers.get("Content-Type", ""), r.read()
     except urllib.error.HTTPError as e:
         return e.code, e.headers.get("Content-Type", ""), e.read()
+
+
+def request_headers(base, method, path, body=None, headers=None):
+    """Like request, with all response headers: (status, headers, body)."""
+    req = urllib.request.Request(base + path, data=body, method=method, headers=headers or {})
+    try:
+        with urllib.request.urlopen(req, timeout=60) as r:
+            return r.status, r.headers, r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, e.headers, e.read()
+
+
+def jpeg_size(b):
+    """(width, height) from a JPEG's SOF segment, or None."""
+    if b[:2] != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 9 < len(b):
+        if b[i] != 0xFF:
+            i += 1
+            continue
+        m = b[i + 1]
+        if m in (0xC0, 0xC1, 0xC2):
+            return int.from_bytes(b[i + 7:i + 9], "big"), int.from_bytes(b[i + 5:i + 7], "big")
+        i += 2 + int.from_bytes(b[i + 2:i + 4], "big")
+    return None
+
+
+def node_check(name, text):
+    with open(name, "wb") as f:
+        f.write(text)
+    return subprocess.run(["node", "--check", name], capture_output=True, text=True)
+
+
+def valid_quality(q):
+    return (isinstance(q, dict) and isinstance(q.get("score"), int) and 0 <= q["score"] <= 100
+            and q.get("verdict") in ("excellent", "good", "fair", "poor") and isinstance(q.get("reasons"), list)
+            and 0 <= q.get("expected_detection_rate", -1) <= 1)
 
 
 def multipart(fields):
@@ -115,6 +154,24 @@ with tempfile.TemporaryDirectory() as t:
         check("app.js is valid JavaScript (node --check)", r.returncode == 0, r.stderr)
         s, ct, b = request(base, "GET", "/style.css")
         check("style.css", s == 200 and ct.startswith("text/css"))
+
+        # The admin page: HTML, script and style, with a content security policy.
+        s, h, b = request_headers(base, "GET", "/admin")
+        check("the admin page at /admin",
+              s == 200 and h.get("Content-Type", "").startswith("text/html") and b"/admin.js" in b
+              and b'id="token"' in b and b"/admin.css" in b, b[:200])
+        check("static pages: Content-Security-Policy and nosniff",
+              "default-src 'self'" in h.get("Content-Security-Policy", "")
+              and h.get("X-Content-Type-Options") == "nosniff", dict(h))
+        s, ct, b = request(base, "GET", "/admin.js")
+        check("admin.js: checks the token, lists, adds, edits, deletes, shows quality",
+              s == 200 and ct.startswith("text/javascript") and b"/api/admin/check" in b and b"sessionStorage" in b
+              and b"/quality" in b and b"'PUT'" in b and b"'DELETE'" in b and b"?thumb=" in b)
+        check("admin.js puts no data in innerHTML", b"innerHTML" not in b)
+        r = node_check(t + "/admin.js", b)
+        check("admin.js is valid JavaScript (node --check)", r.returncode == 0, r.stderr)
+        s, ct, b = request(base, "GET", "/admin.css")
+        check("admin.css", s == 200 and ct.startswith("text/css"))
         s, ct, b = request(base, "GET", "/healthz")
         check("healthz 200 with 2 exhibits", s == 200 and json.loads(b)["exhibits"] == 2, b)
 
@@ -159,6 +216,16 @@ with tempfile.TemporaryDirectory() as t:
         check("one exhibit", s == 200 and json.loads(b)["year"] == "1889", b[:200])
         s, ct, b = request(base, "GET", "/api/exhibits/starry/image")
         check("exhibit image is the stored JPEG", s == 200 and ct == "image/jpeg" and b == open(SAMPLES + "/starry_night.jpg", "rb").read())
+        s, ct, b = request(base, "GET", "/api/exhibits/starry/image?thumb=160")
+        size = jpeg_size(b) if s == 200 else None
+        check("thumbnail: a JPEG at most 160 px on its longest side",
+              s == 200 and ct == "image/jpeg" and size is not None and max(size) == 160, (s, ct, size))
+        s, h, b = request_headers(base, "GET", "/api/exhibits/starry/image?thumb=160")
+        s2, _, b2 = request_headers(base, "GET", "/api/exhibits/starry/image?thumb=160",
+                                    headers={"If-None-Match": h.get("ETag", "")})
+        check("thumbnail: ETag, 304 when unchanged", h.get("ETag") and s2 == 304 and b2 == b"", (h.get("ETag"), s2))
+        s, ct, b = request(base, "GET", "/api/exhibits/starry/image?thumb=abc")
+        check("thumbnail with a bad size: 400 JSON", s == 400 and "error" in json.loads(b), b)
         s, ct, b = request(base, "GET", "/api/exhibits/nope")
         check("unknown exhibit: 404 JSON", s == 404 and "error" in json.loads(b))
         s, ct, b = request(base, "GET", "/nowhere")
@@ -172,8 +239,35 @@ with tempfile.TemporaryDirectory() as t:
         s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct, "Authorization": "Bearer wrong"})
         check("admin add with a wrong token: 401", s == 401, b)
         auth = {"Authorization": "Bearer " + token}
+        s, ct, b = request(base, "GET", "/api/admin/check")
+        check("admin check without token: 401 JSON", s == 401 and "error" in json.loads(b), b)
+        s, ct, b = request(base, "GET", "/api/admin/check", None, {"Authorization": "Bearer " + token + "x"})
+        check("admin check with a wrong token: 401", s == 401, b)
+        s, ct, b = request(base, "GET", "/api/admin/check", None, auth)
+        check("admin check with the token: 204", s == 204 and b == b"", (s, b))
+        s, ct, b = request(base, "GET", "/api/exhibits/starry/quality")
+        check("quality without token: 401", s == 401, b)
+        s, ct, b = request(base, "GET", "/api/exhibits/nope/quality", None, auth)
+        check("quality of an unknown id: 404 JSON", s == 404 and "error" in json.loads(b), b)
+        s, ct, b = request(base, "GET", "/api/exhibits/starry/quality", None, auth)
+        q = json.loads(b) if s == 200 else {}
+        check("quality of an exhibit added by mvkp db add: computed on request, 0-100 with a verdict",
+              s == 200 and valid_quality(q) and q["cached"] is False and q["id"] == "starry", b[:300])
+        s, ct, b = request(base, "GET", "/api/exhibits/starry/quality", None, auth)
+        check("... and kept: the same report, cached", s == 200 and json.loads(b)["cached"] is True
+              and json.loads(b)["score"] == q.get("score"), b[:200])
+        slash_body, slash_ct = multipart({"image": open(SAMPLES + "/coffee.jpg", "rb").read(), "id": "a/b"})
+        s, ct, b = request(base, "POST", "/api/exhibits", slash_body, {"Content-Type": slash_ct, **auth})
+        check("admin add of an id with '/': 400", s == 400 and "/" in json.loads(b)["error"], b)
         s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct, **auth})
-        check("admin add: 201, trained and stored", s == 201 and json.loads(b)["id"] == "coffee", b[:200])
+        added = json.loads(b) if s == 201 else {}
+        check("admin add: 201, trained and stored", s == 201 and added["id"] == "coffee", b[:200])
+        check("admin add: the response holds the target quality (0-100, verdict, reasons)",
+              valid_quality(added.get("quality")) and added["time_ms"]["quality"] > 0, b[:400])
+        s, ct, b = request(base, "GET", "/api/exhibits/coffee/quality", None, auth)
+        check("quality of the added exhibit: stored at add, the same score",
+              s == 200 and valid_quality(json.loads(b)) and json.loads(b)["cached"] is True
+              and json.loads(b)["score"] == added.get("quality", {}).get("score"), b[:200])
         s, ct, b = request(base, "POST", "/api/exhibits", add_body, {"Content-Type": add_ct, **auth})
         check("admin add of a taken id: 409", s == 409, b)
         bad_img, bad_ct = multipart({"image": b"not an image", "id": "x"})
@@ -184,6 +278,13 @@ with tempfile.TemporaryDirectory() as t:
         s, ct, b = request(base, "PUT", "/api/exhibits/coffee", json.dumps({"title": "Morning Coffee"}).encode(),
                            {"Content-Type": "application/json", **auth})
         check("admin update: 200", s == 200 and json.loads(b)["title"] == "Morning Coffee", b[:200])
+        s, ct, b = request(base, "GET", "/api/exhibits/coffee")
+        check("the update shows in GET", s == 200 and json.loads(b)["title"] == "Morning Coffee"
+              and json.loads(b)["artist"] == "A. Barista", b[:200])
+        s, ct, b = request(base, "POST", "/api/recognize", coffee_view, {"Content-Type": "image/png"})
+        f = json.loads(b)["found"] if s == 200 else []
+        check("the update shows in recognitions at once (no reload needed)",
+              f[:1] and f[0]["id"] == "coffee" and f[0]["title"] == "Morning Coffee", b[:200])
         s, ct, b = request(base, "PUT", "/api/exhibits/coffee", b"{not json", {"Content-Type": "application/json", **auth})
         check("admin update with bad JSON: 400", s == 400, b)
         s, ct, b = request(base, "PUT", "/api/exhibits/nope", b"{}", {"Content-Type": "application/json", **auth})
@@ -192,6 +293,8 @@ with tempfile.TemporaryDirectory() as t:
         check("admin delete: 204", s == 204, b)
         s, ct, b = request(base, "GET", "/api/exhibits/coffee")
         check("deleted exhibit: 404", s == 404)
+        s, ct, b = request(base, "GET", "/api/exhibits/coffee/quality", None, auth)
+        check("deleted exhibit: its quality is gone (404)", s == 404, b)
         s, ct, b = request(base, "POST", "/api/recognize", coffee_view, {"Content-Type": "image/png"})
         check("the deleted exhibit is no longer recognised", s == 200 and all(x["id"] != "coffee" for x in json.loads(b)["found"]))
 
@@ -201,6 +304,11 @@ with tempfile.TemporaryDirectory() as t:
               s == 200 and 'mvkp_requests_total{route="/api/recognize",status="200"}' in text
               and 'mvkp_request_seconds_bucket{route="/api/recognize",le="+Inf"}' in text and "mvkp_exhibits 2" in text,
               text[:400])
+        # Kept for the restart below: its quality report is stored with it.
+        fruits_body, fruits_ct = multipart({"image": open(SAMPLES + "/fruits.jpg", "rb").read(), "id": "fruits"})
+        s, ct, b = request(base, "POST", "/api/exhibits", fruits_body, {"Content-Type": fruits_ct, **auth})
+        fruits_score = json.loads(b)["quality"]["score"] if s == 201 else None
+        check("admin add of a second exhibit: 201 with its quality", s == 201 and fruits_score is not None, b[:200])
     finally:
         rc, rest = stop(p)
     check("SIGTERM: graceful stop, exit 0", rc == 0 and '"stopped"' in rest, rest[-300:])
@@ -213,6 +321,8 @@ with tempfile.TemporaryDirectory() as t:
     try:
         s, ct, b = request(base, "DELETE", "/api/exhibits/starry", None, {"Authorization": "Bearer anything"})
         check("no token file: admin API off (403)", s == 403)
+        s, ct, b = request(base, "GET", "/api/admin/check", None, {"Authorization": "Bearer anything"})
+        check("no token file: admin check 403", s == 403 and "error" in json.loads(b), b)
         s, ct, b = request(base, "GET", "/api/exhibits/starry")
         check("... and nothing was deleted", s == 200)
     finally:
@@ -247,6 +357,16 @@ with tempfile.TemporaryDirectory() as t:
     finally:
         rc, _ = stop(p)
     check("... and stops cleanly", rc == 0)
+
+    # After a restart: the quality stored at add is there at once; one computed
+    # on request is computed again.
+    p, base = start(db, "--admin-token-file", t + "/token")
+    try:
+        s, ct, b = request(base, "GET", "/api/exhibits/fruits/quality", None, auth)
+        check("restart: the quality stored at add is served without recomputing",
+              s == 200 and json.loads(b)["cached"] is True and json.loads(b)["score"] == fruits_score, b[:200])
+    finally:
+        stop(p)
 
     # Bad start: missing database, short token.
     r = subprocess.run([MVKP, "serve", t + "/none.db", "--port", "0"], capture_output=True, text=True, timeout=30)

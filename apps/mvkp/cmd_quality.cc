@@ -19,26 +19,10 @@ struct QualityArgs {
   QualityOptions opt;
 };
 
-nlohmann::json QualityJson(const std::string& image, const QualityReport& r) {
-  nlohmann::json factors = nlohmann::json::object(), reasons = nlohmann::json::array();
-  for (const auto& f : r.factors)
-    factors[f.name] = {{"value", f.value},   {"factor", f.factor}, {"weight", f.weight},
-                       {"points", f.points}, {"max_points", 100 * f.weight}, {"lost", f.lost}};
-  for (const auto& q : r.reasons) reasons.push_back({{"code", q.code}, {"message", q.message}, {"lost", q.lost}});
-  nlohmann::json sel = nlohmann::json::array();
-  for (const auto& p : r.selected) sel.push_back({p.x, p.y});
-  return {{"image", image},
-          {"score", r.score},
-          {"verdict", r.verdict},
-          {"expected_detection_rate", r.detection_rate},
-          {"test_views", r.test_views},
-          {"median_error_px", r.median_error_px},
-          {"stable_points", r.eligible_tracks},
-          {"selected_points", r.selected_tracks},
-          {"factors", factors},
-          {"reasons", reasons},
-          {"selected", sel},
-          {"time_ms", r.ms}};
+nlohmann::json ImageQualityJson(const std::string& image, const QualityReport& r) {
+  nlohmann::json j = QualityJson(r, /*with_points=*/true);
+  j["image"] = image;
+  return j;
 }
 
 void PrintText(const std::string& image, const QualityReport& r) {
@@ -65,7 +49,7 @@ int RunQuality(QualityArgs& a) {
     try {
       const cv::Mat gray = LoadImageGray(path);
       const QualityReport r = AssessTarget(gray, a.opt);
-      if (a.json) std::cout << QualityJson(path, r).dump() << std::endl;
+      if (a.json) std::cout << ImageQualityJson(path, r).dump() << std::endl;
       else PrintText(path, r);
       if (!a.draw.empty())
         SaveImage(IndexedPath(a.draw, int(i), int(a.images.size())), DrawQuality(LoadImageColor(path), r));

@@ -5,11 +5,22 @@
 //        multipart field "image" -> found exhibits (id, title, artist, year,
 //        url, outline, homography, inliers, score[, pose]) and timings
 //   GET  /api/exhibits, /api/exhibits/{id}, /api/exhibits/{id}/image
-//   POST /api/exhibits (multipart: image, id, title, artist, year, url, meta),
-//   PUT  /api/exhibits/{id} (JSON metadata), DELETE /api/exhibits/{id}:
+//        [?thumb=N: a JPEG at most N px on its longest side, 16..1024]
+//   POST /api/exhibits (multipart: image, id, title, artist, year, url, meta)
+//        -> 201 with the exhibit and its target quality ("quality"),
+//   PUT  /api/exhibits/{id} (JSON metadata), DELETE /api/exhibits/{id},
+//   GET  /api/exhibits/{id}/quality (the report of `mvkp quality`),
+//   GET  /api/admin/check (204: the token is right):
 //        admin, "Authorization: Bearer TOKEN" with the token read from
 //        --admin-token-file at start; without that file the admin API is off
 //   GET  /healthz, /metrics (Prometheus text)
+//   GET  /, /admin: the web client and the admin page (web/, linked in)
+//
+// Target quality (AssessTarget, ~2 s of one core at the default 120 test
+// views) is computed when the admin API adds an exhibit, concurrently with
+// its training, and stored beside the model (encoding "quality", JSON), so it
+// survives restarts; for exhibits added otherwise (mvkp db add / import) it is
+// computed on the first request, one at a time, and kept in memory.
 //
 // Limits: body size, image pixels, read/write timeouts, and at most
 // --max-inflight recognitions at once (more get 503 at once, not a queue).
@@ -18,11 +29,13 @@
 // requests.
 #include <httplib.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
+#include <future>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -30,6 +43,7 @@
 #include <thread>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "commands.h"
 #include "db_load.h"
@@ -40,6 +54,7 @@
 #include "mvkp/db/target_store.h"
 #include "mvkp/model/model.h"
 #include "mvkp/pose/pose.h"
+#include "mvkp/quality/quality.h"
 #include "mvkp/recognize/recognizer.h"
 #include "mvkp/train/trainer.h"
 #include "output.h"
@@ -56,6 +71,7 @@ struct ServeArgs {
   std::int64_t max_pixels = 12'000'000;
   int timeout_s = 10;
   bool words = false;
+  int probe_words = RecognizerOptions{}.probe_words;
 };
 
 using Json = nlohmann::json;
@@ -132,10 +148,26 @@ Json InfoJson(const TargetInfo& t) {
 // The route label for metrics and logs (ids replaced, so labels stay few).
 std::string RouteOf(const httplib::Request& req) {
   const std::string& p = req.path;
-  if (p.rfind("/api/exhibits/", 0) == 0) return p.size() > 6 && p.substr(p.size() - 6) == "/image" ? "/api/exhibits/{id}/image" : "/api/exhibits/{id}";
-  if (p == "/api/recognize" || p == "/api/exhibits" || p == "/healthz" || p == "/metrics") return p;
+  auto ends = [&](const std::string& tail) {
+    return p.size() > tail.size() && p.compare(p.size() - tail.size(), tail.size(), tail) == 0;
+  };
+  if (p.rfind("/api/exhibits/", 0) == 0)
+    return ends("/image") ? "/api/exhibits/{id}/image" : ends("/quality") ? "/api/exhibits/{id}/quality" : "/api/exhibits/{id}";
+  if (p == "/api/recognize" || p == "/api/exhibits" || p == "/api/admin/check" || p == "/healthz" || p == "/metrics") return p;
+  if (p == "/admin" || p == "/admin.js" || p == "/admin.css") return "/admin";
   return "other";
 }
+
+// The kind under which the admin API stores an exhibit's quality report
+// (QualityJson without the points) beside its model.
+constexpr const char* kQualityEncoding = "quality";
+
+// The static pages load only their own scripts, styles and images (the
+// client's photo preview is a blob: URL), are never framed, and their
+// types are not sniffed.
+constexpr const char* kContentSecurityPolicy =
+    "default-src 'self'; img-src 'self' blob: data:; media-src 'self' blob: mediastream:; object-src 'none'; "
+    "base-uri 'none'; frame-ancestors 'none'; form-action 'self'";
 
 std::atomic<bool> g_stop{false};
 thread_local bool t_overloaded = false;  // this connection came over the bound: answer 503
@@ -187,7 +219,16 @@ class GuideServer {
     }
     if (a_.max_inflight <= 0) a_.max_inflight = 2 * a_.threads;
     options_ = a_.words ? RecognizerOptions::Words() : RecognizerOptions{};
+    if (!a_.words) options_.probe_words = a_.probe_words;
     Reload();
+    // Stored quality reports (exhibits added through the admin API).
+    for (const auto& [info, data] : TargetStore::Open(a_.db).LoadEncodings(kQualityEncoding)) {
+      try {
+        quality_[info.id] = {info.added_at, Json::parse(data.begin(), data.end())};
+      } catch (const std::exception&) {
+        // damaged: computed again on request
+      }
+    }
   }
 
   int Run() {
@@ -226,12 +267,16 @@ class GuideServer {
       }
       SendError(res, res.status, "HTTP " + std::to_string(res.status));
     });
-    // The web client (phone-first, plain HTML/JS) at "/".
-    srv.Get(R"(/|/index\.html|/app\.js|/style\.css)", [](const httplib::Request& req, httplib::Response& res) {
-      const WebAsset* w = FindWebAsset(req.path);
-      res.set_header("Cache-Control", "no-cache");
-      res.set_content(std::string(w->body), std::string(w->content_type).c_str());
-    });
+    srv.set_default_headers({{"X-Content-Type-Options", "nosniff"}});
+    // The web client (phone-first, plain HTML/JS) at "/", the admin page at "/admin".
+    srv.Get(R"(/|/index\.html|/app\.js|/style\.css|/admin|/admin\.html|/admin\.js|/admin\.css)",
+            [](const httplib::Request& req, httplib::Response& res) {
+              const WebAsset* w = FindWebAsset(req.path);
+              res.set_header("Cache-Control", "no-cache");
+              res.set_header("Content-Security-Policy", kContentSecurityPolicy);
+              res.set_header("Referrer-Policy", "same-origin");
+              res.set_content(std::string(w->body), std::string(w->content_type).c_str());
+            });
     srv.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
       res.set_content(Dump(Json{{"status", "ok"}, {"exhibits", Size()}}), "application/json");
     });
@@ -244,13 +289,10 @@ class GuideServer {
       for (const auto& t : TargetStore::Open(a_.db).List()) list.push_back(InfoJson(t));
       res.set_content(Dump(Json{{"exhibits", list}}), "application/json");
     });
-    srv.Get(R"(/api/exhibits/([^/]+)/image)", [this](const httplib::Request& req, httplib::Response& res) {
-      const TargetStore store = TargetStore::Open(a_.db);
-      if (!store.Contains(req.matches[1])) return SendError(res, 404, "no exhibit '" + std::string(req.matches[1]) + "'");
-      const TargetRecord r = store.Get(req.matches[1], true);
-      if (r.image.empty()) return SendError(res, 404, "exhibit has no stored image");
-      const bool png = r.image.size() > 4 && r.image[0] == 0x89 && r.image[1] == 'P';
-      res.set_content(std::string(r.image.begin(), r.image.end()), png ? "image/png" : "image/jpeg");
+    srv.Get(R"(/api/exhibits/([^/]+)/image)", [this](const httplib::Request& req, httplib::Response& res) { Image(req, res); });
+    srv.Get(R"(/api/exhibits/([^/]+)/quality)", [this](const httplib::Request& req, httplib::Response& res) { Quality(req, res); });
+    srv.Get("/api/admin/check", [this](const httplib::Request& req, httplib::Response& res) {
+      if (Authorised(req, res)) res.status = 204;
     });
     srv.Get(R"(/api/exhibits/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
       const TargetStore store = TargetStore::Open(a_.db);
@@ -299,10 +341,101 @@ class GuideServer {
       size[t.id] = {w, h};
     });
     rec->ShrinkToFit();
+    rec->Prepare();  // build the index here, not in the first request after the swap
     std::unique_lock<std::shared_mutex> lock(mutex_);
     rec_ = std::move(rec);
     info_ = std::move(info);
     size_ = std::move(size);
+  }
+
+  // The stored image, or with ?thumb=N a JPEG at most N px on its longest
+  // side (decoded at a reduced size where JPEG allows). An ETag from the
+  // exhibit's size and time of addition lets browsers keep it.
+  void Image(const httplib::Request& req, httplib::Response& res) const {
+    const TargetStore store = TargetStore::Open(a_.db);
+    const std::string id = req.matches[1];
+    if (!store.Contains(id)) return SendError(res, 404, "no exhibit '" + id + "'");
+    int thumb = 0;
+    if (req.has_param("thumb")) {
+      const std::string v = req.get_param_value("thumb");
+      try {
+        std::size_t used = 0;
+        thumb = std::stoi(v, &used);
+        if (used != v.size()) thumb = -1;
+      } catch (const std::exception&) {
+        thumb = -1;
+      }
+      if (thumb < 16 || thumb > 1024) return SendError(res, 400, "thumb must be a whole number of pixels, 16 to 1024");
+    }
+    const TargetRecord r = store.Get(id, true);
+    if (r.image.empty()) return SendError(res, 404, "exhibit has no stored image");
+    const std::string etag = "\"" + std::to_string(r.image.size()) + "-" + r.info.added_at + "-" + std::to_string(thumb) + "\"";
+    res.set_header("ETag", etag);
+    res.set_header("Cache-Control", "no-cache");
+    if (req.get_header_value("If-None-Match") == etag) {
+      res.status = 304;
+      return;
+    }
+    const bool png = r.image.size() > 4 && r.image[0] == 0x89 && r.image[1] == 'P';
+    if (thumb == 0 || std::max(r.info.width, r.info.height) <= thumb) {
+      res.set_content(std::string(r.image.begin(), r.image.end()), png ? "image/png" : "image/jpeg");
+      return;
+    }
+    int reduce = 1;  // JPEG decodes at 1/2, 1/4, 1/8 for little more than the cost of reading
+    while (reduce < 8 && std::max(r.info.width, r.info.height) / (2 * reduce) >= thumb) reduce *= 2;
+    const int flags = reduce == 8   ? cv::IMREAD_REDUCED_COLOR_8
+                      : reduce == 4 ? cv::IMREAD_REDUCED_COLOR_4
+                      : reduce == 2 ? cv::IMREAD_REDUCED_COLOR_2
+                                    : cv::IMREAD_COLOR;
+    cv::Mat img = cv::imdecode(r.image, flags);
+    if (img.empty()) return SendError(res, 500, "cannot decode the stored image of '" + id + "'");
+    const double scale = double(thumb) / std::max(img.cols, img.rows);
+    if (scale < 1) cv::resize(img, img, cv::Size(), scale, scale, cv::INTER_AREA);
+    std::vector<std::uint8_t> jpeg;
+    cv::imencode(".jpg", img, jpeg, {cv::IMWRITE_JPEG_QUALITY, 80});
+    res.set_content(std::string(jpeg.begin(), jpeg.end()), "image/jpeg");
+  }
+
+  // GET /api/exhibits/{id}/quality (admin: an assessment costs seconds).
+  void Quality(const httplib::Request& req, httplib::Response& res) {
+    if (!Authorised(req, res)) return;
+    const std::string id = req.matches[1];
+    const TargetStore store = TargetStore::Open(a_.db);
+    if (!store.Contains(id)) return SendError(res, 404, "no exhibit '" + id + "'");
+    const std::string added_at = store.Get(id, false).info.added_at;
+    auto cached = [&](Json& out) {
+      std::lock_guard<std::mutex> lock(quality_mutex_);
+      const auto it = quality_.find(id);
+      if (it == quality_.end() || it->second.added_at != added_at) return false;
+      out = it->second.report;
+      return true;
+    };
+    Json q;
+    bool computed = false;
+    if (!cached(q)) {
+      // One assessment at a time, so a page asking for many keeps at most
+      // one core busy; a second request for the same id finds the first's.
+      std::lock_guard<std::mutex> one(assess_mutex_);
+      if (!cached(q)) {
+        const TargetRecord r = store.Get(id, true);
+        if (r.image.empty()) return SendError(res, 404, "exhibit '" + id + "' has no stored image to assess");
+        ImageLimits lim;
+        lim.max_pixels = a_.max_pixels;
+        cv::Mat gray;
+        try {
+          gray = DecodeImageGray("stored image of '" + id + "'", r.image, lim);
+        } catch (const Error& e) {
+          return SendError(res, 500, e.what());
+        }
+        q = QualityJson(AssessTarget(gray, QualityOptions{}), /*with_points=*/false);
+        computed = true;
+        std::lock_guard<std::mutex> lock(quality_mutex_);
+        quality_[id] = {added_at, q};
+      }
+    }
+    q["id"] = id;
+    q["cached"] = !computed;
+    res.set_content(Dump(q), "application/json");
   }
 
   bool Authorised(const httplib::Request& req, httplib::Response& res) const {
@@ -443,7 +576,12 @@ class GuideServer {
     info.year = field("year");
     info.url = field("url");
     info.meta = req.has_file("meta") ? field("meta") : "{}";
+    if (info.id.find('/') != std::string::npos)
+      return SendError(res, 400, "id must not contain '/' (ids are part of the exhibits' URLs)");
     const std::string img = field("image");
+    Timer total;
+    double train_ms = 0, quality_ms = 0;
+    Json quality;
     std::unique_lock<std::mutex> admin(admin_mutex_);  // one writer
     try {
       ImageLimits lim;
@@ -451,15 +589,34 @@ class GuideServer {
       const cv::Mat gray = DecodeImageGray("image", std::vector<std::uint8_t>(img.begin(), img.end()), lim);
       TargetStore store = TargetStore::Open(a_.db, TargetStore::Mode::kReadWrite);
       if (store.Contains(info.id)) return SendError(res, 409, "exhibit '" + info.id + "' already exists");
-      const TargetRecord r =
+      // The quality assessment (the longer job) runs beside the training.
+      auto assessed = std::async(std::launch::async, [&gray] { return AssessTarget(gray, QualityOptions{}); });
+      Timer train;
+      TargetRecord r =
           MakeTargetRecord(info, std::vector<std::uint8_t>(img.begin(), img.end()), gray, DbTrainDefaults(), "image");
+      train_ms = train.ElapsedMs();
+      const QualityReport report = assessed.get();
+      quality_ms = report.ms;
+      quality = QualityJson(report, /*with_points=*/false);
+      const std::string q = Dump(quality);
+      r.encodings.push_back({kQualityEncoding, std::vector<std::uint8_t>(q.begin(), q.end())});
       store.Add(r);  // one transaction
     } catch (const Error& e) {
       return SendError(res, e.code() == ErrorCode::kIo ? 500 : 400, e.what());
     }
+    Timer reload;
     Reload();
+    const double reload_ms = reload.ElapsedMs();
+    const TargetInfo added = TargetStore::Open(a_.db).Get(info.id, false).info;
+    {
+      std::lock_guard<std::mutex> lock(quality_mutex_);
+      quality_[info.id] = {added.added_at, quality};
+    }
+    Json out = InfoJson(added);
+    out["quality"] = quality;
+    out["time_ms"] = {{"train", train_ms}, {"quality", quality_ms}, {"reload", reload_ms}, {"total", total.ElapsedMs()}};
     res.status = 201;
-    res.set_content(Dump(InfoJson(TargetStore::Open(a_.db).Get(info.id, false).info)), "application/json");
+    res.set_content(Dump(out), "application/json");
   }
 
   void UpdateExhibit(const httplib::Request& req, httplib::Response& res) {
@@ -494,8 +651,14 @@ class GuideServer {
     } catch (const Error& e) {
       return SendError(res, 400, e.what());
     }
-    Reload();
-    res.set_content(Dump(InfoJson(TargetStore::Open(a_.db).Get(req.matches[1], false).info)), "application/json");
+    // Metadata only: the recogniser stays; recognitions see the new text at once.
+    const TargetInfo updated = TargetStore::Open(a_.db).Get(req.matches[1], false).info;
+    {
+      std::unique_lock<std::shared_mutex> lock(mutex_);
+      const auto it = info_.find(updated.id);
+      if (it != info_.end()) it->second = updated;
+    }
+    res.set_content(Dump(InfoJson(updated)), "application/json");
   }
 
   void DeleteExhibit(const httplib::Request& req, httplib::Response& res) {
@@ -503,6 +666,10 @@ class GuideServer {
     std::unique_lock<std::mutex> admin(admin_mutex_);
     TargetStore store = TargetStore::Open(a_.db, TargetStore::Mode::kReadWrite);
     if (!store.Remove(req.matches[1])) return SendError(res, 404, "no exhibit '" + std::string(req.matches[1]) + "'");
+    {
+      std::lock_guard<std::mutex> lock(quality_mutex_);
+      quality_.erase(req.matches[1]);
+    }
     Reload();
     res.status = 204;
   }
@@ -526,6 +693,15 @@ class GuideServer {
   std::map<std::string, TargetInfo> info_;
   std::map<std::string, cv::Size> size_;
   std::mutex admin_mutex_;
+  // Quality reports by id, with the added_at they belong to (an id deleted
+  // and added again by another process gets a new report).
+  struct CachedQuality {
+    std::string added_at;
+    Json report;
+  };
+  std::map<std::string, CachedQuality> quality_;
+  std::mutex quality_mutex_;  // guards quality_
+  std::mutex assess_mutex_;   // one on-demand assessment at a time
   std::atomic<int> inflight_{0};
   Metrics metrics_;
 };
@@ -547,6 +723,10 @@ void RegisterServe(CLI::App& app, int* code) {
   c->add_option("--max-pixels", a->max_pixels, "largest image, pixels")->capture_default_str();
   c->add_option("--timeout", a->timeout_s, "read/write timeout per request, seconds")->capture_default_str()->check(CLI::Range(1, 3600));
   c->add_flag("--words", a->words, "recognise with the word search (thousands of exhibits)");
+  c->add_option("--probe-words", a->probe_words,
+                "exact search: 0 compares with every centre; N only with those in the query's N nearest words")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 65536));
   c->callback([a, code] {
     GuideServer server(*a);
     *code = server.Run();

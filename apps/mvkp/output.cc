@@ -172,4 +172,28 @@ nlohmann::json RecognitionJson(const Recognition& f, const std::string& title) {
           {"inliers", f.inliers}, {"votes", f.votes}, {"score", f.score}};
 }
 
+nlohmann::json QualityJson(const QualityReport& r, bool with_points) {
+  nlohmann::json factors = nlohmann::json::object(), reasons = nlohmann::json::array();
+  for (const auto& f : r.factors)
+    factors[f.name] = {{"value", f.value},   {"factor", f.factor}, {"weight", f.weight},
+                       {"points", f.points}, {"max_points", 100 * f.weight}, {"lost", f.lost}};
+  for (const auto& q : r.reasons) reasons.push_back({{"code", q.code}, {"message", q.message}, {"lost", q.lost}});
+  nlohmann::json j = {{"score", r.score},
+                      {"verdict", r.verdict},
+                      {"expected_detection_rate", r.detection_rate},
+                      {"test_views", r.test_views},
+                      {"median_error_px", r.median_error_px},
+                      {"stable_points", r.eligible_tracks},
+                      {"selected_points", r.selected_tracks},
+                      {"factors", factors},
+                      {"reasons", reasons},
+                      {"time_ms", r.ms}};
+  if (with_points) {
+    nlohmann::json sel = nlohmann::json::array();
+    for (const auto& p : r.selected) sel.push_back({p.x, p.y});
+    j["selected"] = sel;
+  }
+  return j;
+}
+
 }  // namespace mvkp::cli

@@ -9,6 +9,7 @@
 #include <opencv2/core.hpp>
 
 #include "mvkp/match/matcher.h"
+#include "mvkp/quality/quality.h"
 #include "mvkp/recognize/recognizer.h"
 #include "mvkp/train/trainer.h"
 
@@ -43,5 +44,10 @@ void Progress(const std::string& what, int done, int total);
 // One found target as recognize and serve answer it: id, title, homography,
 // outline, inliers, votes, score.
 nlohmann::json RecognitionJson(const Recognition& f, const std::string& title);
+
+// A target quality report as `mvkp quality --json` and serve give it: score,
+// verdict, expected detection rate, factors (with points), reasons, time_ms;
+// the selected feature positions only when `with_points`.
+nlohmann::json QualityJson(const QualityReport& r, bool with_points);
 
 }  // namespace mvkp::cli

@@ -12,7 +12,7 @@ struct WebAsset {
   std::string_view body;
 };
 
-// The asset served at `path` ("/" is index.html), or nullptr.
+// The asset served at `path` ("/" is index.html, "/admin" admin.html), or nullptr.
 const WebAsset* FindWebAsset(std::string_view path);
 
 }  // namespace mvkp::cli
