@@ -368,6 +368,46 @@ with tempfile.TemporaryDirectory() as t:
     finally:
         stop(p)
 
+    # Two replicas on one database: what one commits (its admin API) or `mvkp
+    # db` commits, the other recognises within its --watch-db period.
+    pa, base_a = start(db, "--admin-token-file", t + "/token", "--watch-db", "0.2")
+    pb, base_b = start(db, "--watch-db", "0.2")
+
+    def recognised_by(base, frame, want, seconds=15):
+        end = time.time() + seconds
+        while True:
+            s, ct, b = request(base, "POST", "/api/recognize", frame, {"Content-Type": "image/png"})
+            ids = [x["id"] for x in json.loads(b)["found"]] if s == 200 else None
+            if ids is not None and (want in ids) or time.time() > end:
+                return ids
+            time.sleep(0.2)
+
+    def not_recognised_by(base, frame, gone, seconds=15):
+        end = time.time() + seconds
+        while True:
+            s, ct, b = request(base, "POST", "/api/recognize", frame, {"Content-Type": "image/png"})
+            ids = [x["id"] for x in json.loads(b)["found"]] if s == 200 else None
+            if ids is not None and gone not in ids or time.time() > end:
+                return ids
+            time.sleep(0.2)
+    try:
+        check("replicas: coffee is not an exhibit yet", "coffee" not in (recognised_by(base_b, coffee_view, "-", 0) or []))
+        run("db", "add", db, "--id", "coffee", "--image", SAMPLES + "/coffee.jpg", "--title", "Coffee")
+        ids_a = recognised_by(base_a, coffee_view, "coffee")
+        ids_b = recognised_by(base_b, coffee_view, "coffee")
+        check("replicas: an exhibit added by `mvkp db add` is recognised by both", ids_a and ids_b and
+              ids_a[0] == "coffee" and ids_b[0] == "coffee", "%s %s" % (ids_a, ids_b))
+        s, ct, b = request(base_a, "DELETE", "/api/exhibits/coffee", None, auth)
+        check("replicas: deleted through replica A's admin API", s == 204, s)
+        ids_b = not_recognised_by(base_b, coffee_view, "coffee")
+        check("replicas: ... and replica B no longer recognises it", ids_b is not None and "coffee" not in ids_b, ids_b)
+        s, ct, b = request(base_b, "GET", "/healthz")
+        check("replicas: B's exhibit count follows", s == 200 and json.loads(b)["exhibits"] == 3, b)
+    finally:
+        stop(pa)
+        rc, err = stop(pb)
+    check("replicas: B logged its reloads", err.count('"reason":"database changed"') >= 2, err[-500:])
+
     # Bad start: missing database, short token.
     r = subprocess.run([MVKP, "serve", t + "/none.db", "--port", "0"], capture_output=True, text=True, timeout=30)
     check("missing database: exit 1, one error line", r.returncode == 1 and "none.db" in r.stderr, r.stderr)

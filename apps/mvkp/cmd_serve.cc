@@ -72,6 +72,7 @@ struct ServeArgs {
   int timeout_s = 10;
   bool words = false;
   int probe_words = RecognizerOptions{}.probe_words;
+  double watch_s = 2;  // database change polling period (0: off)
 };
 
 using Json = nlohmann::json;
@@ -220,7 +221,8 @@ class GuideServer {
     if (a_.max_inflight <= 0) a_.max_inflight = 2 * a_.threads;
     options_ = a_.words ? RecognizerOptions::Words() : RecognizerOptions{};
     if (!a_.words) options_.probe_words = a_.probe_words;
-    Reload();
+    watch_store_ = std::make_unique<TargetStore>(TargetStore::Open(a_.db));
+    ReloadAfterChange();
     // Stored quality reports (exhibits added through the admin API).
     for (const auto& [info, data] : TargetStore::Open(a_.db).LoadEncodings(kQualityEncoding)) {
       try {
@@ -312,6 +314,17 @@ class GuideServer {
       while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
       srv.stop();
     });
+    // Replicas share one database: each picks up what others (or `mvkp db`)
+    // commit, within --watch-db seconds.
+    std::thread db_watch([this] {
+      auto next = std::chrono::steady_clock::now();
+      while (!g_stop && a_.watch_s > 0) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        if (std::chrono::steady_clock::now() < next) continue;
+        next = std::chrono::steady_clock::now() + std::chrono::milliseconds(std::int64_t(a_.watch_s * 1000));
+        WatchDatabase();
+      }
+    });
     std::fprintf(stderr, "%s\n",
                  Json{{"event", "listening"}, {"host", a_.host}, {"port", a_.port}, {"exhibits", Size()},
                       {"threads", a_.threads}, {"admin", !token_.empty()}, {"search", a_.words ? "words" : "exact"}}
@@ -320,6 +333,7 @@ class GuideServer {
     srv.listen_after_bind();
     g_stop = true;
     watcher.join();
+    db_watch.join();
     std::fprintf(stderr, "%s\n", Json{{"event", "stopped"}}.dump().c_str());
     return 0;
   }
@@ -330,7 +344,36 @@ class GuideServer {
     return rec_ ? rec_->size() : 0;
   }
 
-  // (Re)loads every exhibit: at start, and after an admin change.
+  // Reloads after a change this server committed (admin_mutex_ held, or at
+  // start): the database's data_version is read before loading, so a commit
+  // by anyone else after that point is still seen by WatchDatabase.
+  void ReloadAfterChange() {
+    const std::uint64_t v = watch_store_->DataVersion();
+    Reload();
+    seen_version_ = v;
+  }
+
+  // Polled by the db_watch thread: reload when another connection (another
+  // replica's admin API, `mvkp db`) has committed since the last load. A
+  // database that cannot be loaded keeps the recogniser serving what it has.
+  void WatchDatabase() {
+    std::unique_lock<std::mutex> admin(admin_mutex_);
+    try {
+      const std::uint64_t v = watch_store_->DataVersion();
+      if (v == seen_version_) return;
+      Timer t;
+      Reload();
+      seen_version_ = v;
+      std::fprintf(stderr, "%s\n",
+                   Json{{"event", "reloaded"}, {"reason", "database changed"}, {"exhibits", Size()}, {"ms", t.ElapsedMs()}}
+                       .dump()
+                       .c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s\n", Dump(Json{{"event", "reload failed"}, {"error", e.what()}}).c_str());
+    }
+  }
+
+  // (Re)loads every exhibit: at start, and after a change.
   void Reload() {
     const TargetStore store = TargetStore::Open(a_.db, TargetStore::Mode::kReadOnly);
     auto rec = std::make_shared<Recognizer>(options_);
@@ -605,7 +648,7 @@ class GuideServer {
       return SendError(res, e.code() == ErrorCode::kIo ? 500 : 400, e.what());
     }
     Timer reload;
-    Reload();
+    ReloadAfterChange();
     const double reload_ms = reload.ElapsedMs();
     const TargetInfo added = TargetStore::Open(a_.db).Get(info.id, false).info;
     {
@@ -670,7 +713,7 @@ class GuideServer {
       std::lock_guard<std::mutex> lock(quality_mutex_);
       quality_.erase(req.matches[1]);
     }
-    Reload();
+    ReloadAfterChange();
     res.status = 204;
   }
 
@@ -692,7 +735,9 @@ class GuideServer {
   std::shared_ptr<Recognizer> rec_;
   std::map<std::string, TargetInfo> info_;
   std::map<std::string, cv::Size> size_;
-  std::mutex admin_mutex_;
+  std::mutex admin_mutex_;  // one writer; also serialises reloads
+  std::unique_ptr<TargetStore> watch_store_;  // a connection kept open for its data_version
+  std::uint64_t seen_version_ = 0;            // data_version of the last load (admin_mutex_)
   // Quality reports by id, with the added_at they belong to (an id deleted
   // and added again by another process gets a new report).
   struct CachedQuality {
@@ -723,6 +768,10 @@ void RegisterServe(CLI::App& app, int* code) {
   c->add_option("--max-pixels", a->max_pixels, "largest image, pixels")->capture_default_str();
   c->add_option("--timeout", a->timeout_s, "read/write timeout per request, seconds")->capture_default_str()->check(CLI::Range(1, 3600));
   c->add_flag("--words", a->words, "recognise with the word search (thousands of exhibits)");
+  c->add_option("--watch-db", a->watch_s,
+                "seconds between checks for changes committed by others (replicas, mvkp db); 0: off")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 86400.0));
   c->add_option("--probe-words", a->probe_words,
                 "exact search: 0 compares with every centre; N only with those in the query's N nearest words")
       ->capture_default_str()

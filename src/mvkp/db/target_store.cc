@@ -499,6 +499,12 @@ bool TargetStore::Contains(const std::string& id) const {
   return st.Step();
 }
 
+std::uint64_t TargetStore::DataVersion() const {
+  Stmt st(*impl_, "PRAGMA data_version");
+  st.Step();
+  return std::uint64_t(sqlite3_column_int64(st.st, 0));
+}
+
 std::size_t TargetStore::Count() const {
   Stmt st(*impl_, "SELECT count(*) FROM targets");
   st.Step();

@@ -64,6 +64,11 @@ class TargetStore {
 
   const std::string& path() const;
   int schema_version() const;
+  // SQLite's data_version of this store's connection: it changes whenever
+  // another connection (this process or another) has committed a change
+  // since the last call. A server polls it to pick up changes made by `mvkp
+  // db` or by another replica's admin API.
+  std::uint64_t DataVersion() const;
 
   // One transaction. Throws Error(kInvalidArgument) for a duplicate id
   // ("target 'X' already exists"), a bad id or invalid meta JSON; nothing is

@@ -269,6 +269,32 @@ TEST_F(TargetStoreTest, ReadOnlyStoreReadsAndRefusesWrites) {
   EXPECT_EQ(ReadFile(db_), bytes);
 }
 
+// A reader sees data_version change after each commit by another connection
+// (as a server watching the file does), and not after its own reads.
+TEST_F(TargetStoreTest, DataVersionChangesWithOtherConnectionsCommits) {
+  TargetStore writer = TargetStore::Create(db_);
+  writer.Add(Record("a", 100, 1));
+  const TargetStore reader = TargetStore::Open(db_);
+  const std::uint64_t v0 = reader.DataVersion();
+  EXPECT_EQ(reader.Count(), 1u);
+  EXPECT_EQ(reader.DataVersion(), v0);
+  writer.Add(Record("b", 100, 2));
+  const std::uint64_t v1 = reader.DataVersion();
+  EXPECT_NE(v1, v0);
+  EXPECT_EQ(reader.DataVersion(), v1);
+  TargetInfo info = writer.Get("a", false).info;
+  info.title = "renamed";
+  ASSERT_TRUE(writer.UpdateInfo(info));
+  const std::uint64_t v2 = reader.DataVersion();
+  EXPECT_NE(v2, v1);
+  ASSERT_TRUE(writer.Remove("b"));
+  EXPECT_NE(reader.DataVersion(), v2);
+  // A failed write (duplicate id) commits nothing.
+  const std::uint64_t v3 = reader.DataVersion();
+  EXPECT_THROW(writer.Add(Record("a", 100, 3)), Error);
+  EXPECT_EQ(reader.DataVersion(), v3);
+}
+
 TEST_F(TargetStoreTest, OpenRejectsWhatIsNotOurs) {
   using M = TargetStore::Mode;
   for (M mode : {M::kReadOnly, M::kReadWrite}) {
