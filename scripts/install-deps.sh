@@ -13,6 +13,7 @@ pkgs=(
   libsqlite3-dev           # target database (src/mvkp/db)
   libcpp-httplib-dev       # mvkp serve (museum guide server)
   nodejs                   # web client checks (tests/serve_api_test.py)
+  chromium                 # web client in a real browser (tests/e2e, CTest web_e2e)
   python3 python3-numpy python3-opencv  # evaluation scripts (eval_pairs.py, contract-check)
 )
 missing=()

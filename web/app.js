@@ -15,6 +15,7 @@
   const showDebug = params.get('debug') === '1';
   const info = new Map();          // exhibit id -> information (fetched once)
   const grab = document.createElement('canvas');
+  let idleHint = hint.textContent; // shown while nothing is recognised
   let prev = '';                   // last exhibit seen: temporal focus on the server
   let shown = '';
   let lastMs = 0, frames = 0;
@@ -78,6 +79,7 @@
     const j = r.ok ? await r.json() : { found: [] };
     const found = j.found || [];
     draw(found, grab.width, grab.height);
+    if (!found.length) hint.textContent = idleHint;  // also after 'Connection problem'
     hint.hidden = found.length > 0;
     prev = found.length ? found[0].id : '';
     await showCard(prev);
@@ -100,22 +102,31 @@
     requestAnimationFrame(loop);   // the next frame once the answer is back
   }
 
+  // No camera: recognise a chosen photo, shown under the outline; another can be chosen.
   function fallback() {
-    document.getElementById('upload').hidden = false;
+    const upload = document.getElementById('upload');
+    const photo = document.getElementById('photo');
+    upload.hidden = false;
     hint.textContent = 'No camera available';
+    idleHint = 'No painting recognised in this photo';
+    photo.onload = async () => {
+      video.hidden = true;
+      photo.hidden = false;
+      upload.classList.add('again');
+      prev = '';
+      try {
+        await recognise(photo, photo.naturalWidth, photo.naturalHeight);
+      } catch (e) {
+        hint.textContent = 'Connection problem, try again';
+        hint.hidden = false;
+      }
+    };
+    photo.onerror = () => { hint.textContent = 'Cannot read this photo'; hint.hidden = false; };
     document.getElementById('file').addEventListener('change', (ev) => {
       const file = ev.target.files[0];
       if (!file) return;
-      const img = new Image();
-      img.onload = async () => {
-        video.hidden = true;
-        document.getElementById('upload').hidden = true;
-        prev = '';
-        const found = await recognise(img, img.naturalWidth, img.naturalHeight);
-        if (!found.length) { hint.textContent = 'No painting recognised in this photo'; hint.hidden = false; }
-        URL.revokeObjectURL(img.src);
-      };
-      img.src = URL.createObjectURL(file);
+      if (photo.src) URL.revokeObjectURL(photo.src);
+      photo.src = URL.createObjectURL(file);
     });
   }
 
