@@ -17,6 +17,7 @@ import sys
 import tempfile
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 import uuid
 
@@ -88,6 +89,42 @@ def valid_quality(q):
     return (isinstance(q, dict) and isinstance(q.get("score"), int) and 0 <= q["score"] <= 100
             and q.get("verdict") in ("excellent", "good", "fair", "poor") and isinstance(q.get("reasons"), list)
             and 0 <= q.get("expected_detection_rate", -1) <= 1)
+
+
+def png_header(width, height):
+    """A PNG signature and IHDR (valid CRC) claiming width x height, then a truncated IDAT."""
+    import struct
+    import zlib
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    chunk = struct.pack(">I", len(ihdr)) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    return b"\x89PNG\r\n\x1a\n" + chunk + struct.pack(">I", 1000) + b"IDAT" + b"\x78\x9c" + b"\x00" * 30
+
+
+def png_flat(width, height, grey=128):
+    """A valid greyscale PNG of one flat colour (no texture to train on)."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    raw = b"".join(b"\x00" + bytes([grey]) * width for _ in range(height))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+def raw_get(port, path):
+    """GET `path` byte for byte (no client-side normalisation of '..')."""
+    import socket
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as c:
+        c.sendall(("GET %s HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n" % path).encode())
+        data = b""
+        while True:
+            part = c.recv(65536)
+            if not part:
+                break
+            data += part
+    status = int(data.split(b" ", 2)[1]) if data.startswith(b"HTTP/") else 0
+    return status, data
 
 
 def multipart(fields):
@@ -205,8 +242,26 @@ with tempfile.TemporaryDirectory() as t:
         bad("body over --max-body-mb: 413", 413, "/api/recognize", b"\xff" * (2 << 20), {"Content-Type": "image/jpeg"})
         mp_body, mp_ct = multipart({"other": "x"})
         bad("multipart without image: 400", 400, "/api/recognize", mp_body, {"Content-Type": mp_ct})
+        bad("a 50000x50000 PNG header: 413 before any decoding", 413, "/api/recognize", png_header(50000, 50000),
+            {"Content-Type": "image/png"})
+        s, ct, b = request(base, "POST", "/api/recognize", png_header(50000, 50000), {"Content-Type": "image/png"})
+        check("... and the error names the size", s == 413 and b"50000x50000" in b, b[:200])
+        boundary = "xyzzy"
+        for desc, body in [("no closing boundary", b"--xyzzy\r\nContent-Disposition: form-data; name=\"image\"\r\n\r\nabc"),
+                           ("garbage", b"this is not multipart at all"),
+                           ("no headers", b"--xyzzy\r\n\r\n\r\n--xyzzy--\r\n")]:
+            bad("malformed multipart (%s): 400" % desc, 400, "/api/recognize", body,
+                {"Content-Type": "multipart/form-data; boundary=" + boundary})
         bad("bad fx: 400", 400, "/api/recognize?fx=abc", view, {"Content-Type": "image/png"})
         bad("negative fx: 400", 400, "/api/recognize?fx=-5", view, {"Content-Type": "image/png"})
+
+        # Path traversal: never a file of the host, always a 4xx.
+        port = int(base.rsplit(":", 1)[1])
+        for path in ["/../../../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/admin/../../etc/passwd",
+                     "/api/exhibits/..%2F..%2F..%2Fetc%2Fpasswd/image", "/api/exhibits/../../etc/passwd",
+                     "/app.js/../../../etc/passwd", "/..%5c..%5cetc%5cpasswd"]:
+            st, data = raw_get(port, path)
+            check("path traversal %s: 4xx, no host file" % path, 400 <= st < 500 and b"root:" not in data, data[:120])
 
         # Exhibit information.
         s, ct, b = request(base, "GET", "/api/exhibits")
@@ -273,6 +328,19 @@ with tempfile.TemporaryDirectory() as t:
         bad_img, bad_ct = multipart({"image": b"not an image", "id": "x"})
         s, ct, b = request(base, "POST", "/api/exhibits", bad_img, {"Content-Type": bad_ct, **auth})
         check("admin add of a non-image: 400", s == 400 and "error" in json.loads(b), b)
+        flat = png_flat(320, 240)
+        flat_body, flat_ct = multipart({"image": flat, "id": "flat", "title": "Nothing to see"})
+        s, ct, b = request(base, "POST", "/api/exhibits", flat_body, {"Content-Type": flat_ct, **auth})
+        check("admin add of an image with no texture: 400 (cannot train)", s == 400 and "error" in json.loads(b), b[:200])
+        bad_mp = b"--xyzzy\r\nContent-Disposition: form-data; name=\"id\"\r\n\r\nhalf"
+        s, ct, b = request(base, "POST", "/api/exhibits", bad_mp,
+                           {"Content-Type": "multipart/form-data; boundary=xyzzy", **auth})
+        check("admin add with malformed multipart: 400", s == 400, b[:200])
+        s, ct, b = request(base, "GET", "/api/exhibits")
+        ids_now = [e["id"] for e in json.loads(b)["exhibits"]] if s == 200 else None
+        check("no partial exhibit after failed adds", ids_now == ["building", "coffee", "starry"], ids_now)
+        s, ct, b = request(base, "GET", "/api/exhibits/flat")
+        check("... the failed id is unknown (404)", s == 404, b[:100])
         s, ct, b = request(base, "POST", "/api/recognize", coffee_view, {"Content-Type": "image/png"})
         check("the added exhibit is recognised at once", s == 200 and [x["id"] for x in json.loads(b)["found"]][:1] == ["coffee"], b[:200])
         s, ct, b = request(base, "PUT", "/api/exhibits/coffee", json.dumps({"title": "Morning Coffee"}).encode(),
@@ -285,6 +353,16 @@ with tempfile.TemporaryDirectory() as t:
         f = json.loads(b)["found"] if s == 200 else []
         check("the update shows in recognitions at once (no reload needed)",
               f[:1] and f[0]["id"] == "coffee" and f[0]["title"] == "Morning Coffee", b[:200])
+        sql = "Robert'); DROP TABLE targets; -- \" OR 1=1"
+        s, ct, b = request(base, "PUT", "/api/exhibits/coffee", json.dumps({"artist": sql, "meta": {"note": sql}}).encode(),
+                           {"Content-Type": "application/json", **auth})
+        check("SQL-looking metadata: stored as text (200)", s == 200 and json.loads(b)["artist"] == sql, b[:200])
+        s, ct, b = request(base, "GET", "/api/exhibits")
+        check("... the table is intact and the text comes back as sent",
+              s == 200 and [e["id"] for e in json.loads(b)["exhibits"]] == ["building", "coffee", "starry"]
+              and [e for e in json.loads(b)["exhibits"] if e["id"] == "coffee"][0]["artist"] == sql, b[:300])
+        s, ct, b = request(base, "GET", "/api/exhibits/" + urllib.parse.quote("x' OR '1'='1", safe=""))
+        check("SQL-looking id in the URL: 404", s == 404, b[:100])
         s, ct, b = request(base, "PUT", "/api/exhibits/coffee", b"{not json", {"Content-Type": "application/json", **auth})
         check("admin update with bad JSON: 400", s == 400, b)
         s, ct, b = request(base, "PUT", "/api/exhibits/nope", b"{}", {"Content-Type": "application/json", **auth})
@@ -360,8 +438,43 @@ with tempfile.TemporaryDirectory() as t:
 
     # After a restart: the quality stored at add is there at once; one computed
     # on request is computed again.
-    p, base = start(db, "--admin-token-file", t + "/token")
+    p, base = start(db, "--admin-token-file", t + "/token", "--timeout", "2", "--max-connection-s", "3")
     try:
+        # A slow client (headers, then a trickle of a promised body) does not
+        # stop others being served and is cut off after --timeout.
+        import socket
+        slow = socket.create_connection(("127.0.0.1", int(base.rsplit(":", 1)[1])), timeout=30)
+        slow.sendall(b"POST /api/recognize HTTP/1.1\r\nHost: x\r\nContent-Type: image/jpeg\r\n"
+                     b"Content-Length: 100000\r\n\r\n" + baboon[:100])
+        t_slow = time.time()
+        s, ct, b = request(base, "GET", "/healthz")
+        check("slow client: others are still served", s == 200, b)
+        s, ct, b = request(base, "POST", "/api/recognize", view, {"Content-Type": "image/png"})
+        check("slow client: recognition still answers", s == 200 and json.loads(b)["found"], b[:100])
+        answer = b""
+        try:
+            while time.time() - t_slow < 20:
+                slow.sendall(b"\x00")  # one byte a second: each read is in time, the whole is not
+                slow.settimeout(1.0)
+                try:
+                    part = slow.recv(4096)
+                    if not part:
+                        break
+                    answer += part
+                except socket.timeout:
+                    pass
+        except OSError:
+            pass
+        closed_after = time.time() - t_slow
+        slow.close()
+        # (The server answers 400 when the body read fails, but it closes with
+        # the trickled bytes unread, so the kernel may reset the connection
+        # before the client reads that answer.)
+        check("slow client: cut off after --max-connection-s (3 s), not after 20",
+              2.5 < closed_after < 12 and (answer == b"" or answer.startswith(b"HTTP/1.1 4")), (closed_after, answer[:80]))
+        s, ct, b = request(base, "GET", "/metrics")
+        check("slow client: counted in mvkp_connections_cut_total",
+              s == 200 and b"mvkp_connections_cut_total 1" in b, b[-300:])
         s, ct, b = request(base, "GET", "/api/exhibits/fruits/quality", None, auth)
         check("restart: the quality stored at add is served without recomputing",
               s == 200 and json.loads(b)["cached"] is True and json.loads(b)["score"] == fruits_score, b[:200])

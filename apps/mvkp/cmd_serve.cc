@@ -59,6 +59,7 @@
 #include "mvkp/train/trainer.h"
 #include "output.h"
 #include "pose_cli.h"
+#include "conn_deadline.h"
 #include "web_assets.h"
 
 namespace mvkp::cli {
@@ -66,10 +67,11 @@ namespace {
 
 struct ServeArgs {
   std::string db, host = "127.0.0.1", token_file;
-  int port = 8080, threads = 2, max_inflight = 0;  // 0: 2 x threads
+  int port = 8080, threads = 2, max_inflight = 0;  // 0: 8 x threads
   std::size_t max_body_mb = 10;
   std::int64_t max_pixels = 12'000'000;
   int timeout_s = 10;
+  double max_connection_s = 30;  // total per connection (slow clients), ConnectionDeadline
   bool words = false;
   int probe_words = RecognizerOptions{}.probe_words;
   double watch_s = 2;  // database change polling period (0: off)
@@ -218,7 +220,9 @@ class GuideServer {
       Require(token_.size() >= 16, ErrorCode::kInvalidArgument,
               a_.token_file + ": admin token must be at least 16 characters");
     }
-    if (a_.max_inflight <= 0) a_.max_inflight = 2 * a_.threads;
+    // Enough for a page loading thumbnails on keep-alive beside a few phones;
+    // at ~12 ms a frame the deepest queue waits ~50 ms per thread.
+    if (a_.max_inflight <= 0) a_.max_inflight = 8 * a_.threads;
     options_ = a_.words ? RecognizerOptions::Words() : RecognizerOptions{};
     if (!a_.words) options_.probe_words = a_.probe_words;
     watch_store_ = std::make_unique<TargetStore>(TargetStore::Open(a_.db));
@@ -283,7 +287,11 @@ class GuideServer {
       res.set_content(Dump(Json{{"status", "ok"}, {"exhibits", Size()}}), "application/json");
     });
     srv.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
-      res.set_content(metrics_.Text(Size(), inflight_.load()), "text/plain; version=0.0.4");
+      std::string text = metrics_.Text(Size(), inflight_.load());
+      text += "# HELP mvkp_connections_cut_total Connections cut for lasting over --max-connection-s.\n"
+              "# TYPE mvkp_connections_cut_total counter\nmvkp_connections_cut_total " +
+              std::to_string(connections_cut_.load()) + "\n";
+      res.set_content(text, "text/plain; version=0.0.4");
     });
     srv.Post("/api/recognize", [this](const httplib::Request& req, httplib::Response& res) { Recognize(req, res); });
     srv.Get("/api/exhibits", [this](const httplib::Request&, httplib::Response& res) {
@@ -330,7 +338,11 @@ class GuideServer {
                       {"threads", a_.threads}, {"admin", !token_.empty()}, {"search", a_.words ? "words" : "exact"}}
                      .dump()
                      .c_str());
-    srv.listen_after_bind();
+    {
+      ConnectionDeadline deadline(a_.port, std::chrono::milliseconds(std::int64_t(a_.max_connection_s * 1000)),
+                                  std::chrono::milliseconds(250), std::chrono::seconds(5), &connections_cut_);
+      srv.listen_after_bind();
+    }
     g_stop = true;
     watcher.join();
     db_watch.join();
@@ -748,6 +760,7 @@ class GuideServer {
   std::mutex quality_mutex_;  // guards quality_
   std::mutex assess_mutex_;   // one on-demand assessment at a time
   std::atomic<int> inflight_{0};
+  std::atomic<std::uint64_t> connections_cut_{0};  // by ConnectionDeadline
   Metrics metrics_;
 };
 
@@ -761,12 +774,16 @@ void RegisterServe(CLI::App& app, int* code) {
   c->add_option("--port", a->port, "port (0: any free port, printed at start)")->capture_default_str();
   c->add_option("--threads", a->threads, "worker threads")->capture_default_str()->check(CLI::Range(1, 256));
   c->add_option("--max-inflight", a->max_inflight,
-                "connections served or waiting at once; more get 503 at once (0: 2 x threads)")
+                "connections served or waiting at once; more get 503 at once (0: 8 x threads)")
       ->capture_default_str();
   c->add_option("--admin-token-file", a->token_file, "file holding the admin bearer token (admin API off without it)");
   c->add_option("--max-body-mb", a->max_body_mb, "largest request body, MiB")->capture_default_str()->check(CLI::Range(1, 1024));
   c->add_option("--max-pixels", a->max_pixels, "largest image, pixels")->capture_default_str();
   c->add_option("--timeout", a->timeout_s, "read/write timeout per request, seconds")->capture_default_str()->check(CLI::Range(1, 3600));
+  c->add_option("--max-connection-s", a->max_connection_s,
+                "longest a client connection may last, seconds (cuts clients that trickle their request)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 86400.0));
   c->add_flag("--words", a->words, "recognise with the word search (thousands of exhibits)");
   c->add_option("--watch-db", a->watch_s,
                 "seconds between checks for changes committed by others (replicas, mvkp db); 0: off")
