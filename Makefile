@@ -4,7 +4,7 @@ PREFIX ?= /usr/local
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure build test demo install uninstall clean loadtest
+.PHONY: all deps configure build test demo install uninstall clean loadtest serve-latency
 
 all: build
 
@@ -38,3 +38,8 @@ clean:
 # p50/p99, errors, RSS; then the concurrency bound exceeded on purpose.
 loadtest: build
 	@bash scripts/loadtest.sh $(BUILD)/mvkp out/loadtest 60
+
+# POST /api/recognize against 100 exhibits, 640x480 JPEGs, 2 server threads
+# (issue 7: median <= 25 ms, p99 <= 60 ms end to end on loopback).
+serve-latency: build
+	@bash scripts/serve-latency.sh $(BUILD)/mvkp out/serve-latency
