@@ -18,6 +18,7 @@ void RegisterKnn(CLI::App& app, int* exit_code);
 void RegisterQuality(CLI::App& app, int* exit_code);
 void RegisterDb(CLI::App& app, int* exit_code);
 void RegisterVideo(CLI::App& app, int* exit_code);
+void RegisterSynthCity(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
 void RegisterVocab(CLI::App& app, int* exit_code);
 void RegisterServe(CLI::App& app, int* exit_code);

@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterVocab(app, &code);
   mvkp::cli::RegisterServe(app, &code);
   mvkp::cli::RegisterVideo(app, &code);
+  mvkp::cli::RegisterSynthCity(app, &code);
   // CLI11 reports "A subcommand is required" for a misspelt one; name it instead.
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;
