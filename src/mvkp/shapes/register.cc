@@ -1,0 +1,730 @@
+#include "mvkp/shapes/register.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+
+namespace mvkp {
+
+void RegistrationOptions::Check() const {
+  shape.Check();
+  auto need = [](bool c, const char* m) { Require(c, ErrorCode::kInvalidArgument, m); };
+  need(partial_min_corners >= 4 && max_partials_per_region >= 0,
+       "RegistrationOptions: partial_min_corners >= 4, max_partials_per_region >= 0");
+  need(min_region_area >= 0, "RegistrationOptions.min_region_area must be >= 0");
+  need(candidates_per_region >= 1 && shifts_per_pair >= 1 && max_hypotheses >= 1,
+       "RegistrationOptions: candidates_per_region, shifts_per_pair, max_hypotheses must be >= 1");
+  need(min_scale > 0 && max_scale > min_scale, "RegistrationOptions: need 0 < min_scale < max_scale");
+  need(inlier_px > 0 && inlier_fraction > 0 && inlier_fraction <= 1,
+       "RegistrationOptions: inlier_px > 0, inlier_fraction in (0, 1]");
+  need(max_area_ratio >= 1, "RegistrationOptions.max_area_ratio must be >= 1");
+  need(min_regions >= 2, "RegistrationOptions.min_regions must be >= 2");
+  need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "RegistrationOptions.min_inlier_ratio in [0, 1]");
+  need(max_rms_px > 0, "RegistrationOptions.max_rms_px must be > 0");
+  need(principal_tolerance_deg > 0 && principal_tolerance_deg < 45,
+       "RegistrationOptions.principal_tolerance_deg in (0, 45)");
+}
+
+Contour TransformPoints(const cv::Matx33d& T, const Contour& pts) {
+  Contour out(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const double x = pts[i].x, y = pts[i].y;
+    const double w = T(2, 0) * x + T(2, 1) * y + T(2, 2);
+    const double iw = std::abs(w) > 1e-12 ? 1.0 / w : 1e12;
+    out[i] = cv::Point2f(float((T(0, 0) * x + T(0, 1) * y + T(0, 2)) * iw),
+                         float((T(1, 0) * x + T(1, 1) * y + T(1, 2)) * iw));
+  }
+  return out;
+}
+
+namespace {
+
+using Model = RegistrationOptions::Model;
+using Corr = std::vector<std::pair<cv::Point2f, cv::Point2f>>;
+
+const char* ModelName(Model m) {
+  switch (m) {
+    case Model::kSimilarity: return "similarity";
+    case Model::kAffine: return "affine";
+    default: return "perspective";
+  }
+}
+
+// ---- least-squares model fits (photo -> depth) ----------------------------
+
+bool FitSimilarity(const Corr& c, cv::Matx33d* T) {
+  if (c.size() < 2) return false;
+  double mx = 0, my = 0, nx = 0, ny = 0;
+  for (const auto& [p, q] : c) mx += p.x, my += p.y, nx += q.x, ny += q.y;
+  const double n = double(c.size());
+  mx /= n, my /= n, nx /= n, ny /= n;
+  double a = 0, b = 0, ss = 0;
+  for (const auto& [p, q] : c) {
+    const double px = p.x - mx, py = p.y - my, qx = q.x - nx, qy = q.y - ny;
+    a += px * qx + py * qy;
+    b += px * qy - py * qx;
+    ss += px * px + py * py;
+  }
+  if (!(ss > 1e-9)) return false;
+  const double ca = a / ss, sb = b / ss;
+  *T = cv::Matx33d(ca, -sb, nx - (ca * mx - sb * my), sb, ca, ny - (sb * mx + ca * my), 0, 0, 1);
+  return std::isfinite(ca) && std::isfinite(sb) && (ca * ca + sb * sb) > 1e-12;
+}
+
+bool FitAffine(const Corr& c, cv::Matx33d* T) {
+  if (c.size() < 3) return false;
+  cv::Matx33d AtA = cv::Matx33d::zeros();
+  cv::Matx32d AtB = cv::Matx32d::zeros();
+  // centre for conditioning
+  double mx = 0, my = 0;
+  for (const auto& pq : c) mx += pq.first.x, my += pq.first.y;
+  mx /= double(c.size()), my /= double(c.size());
+  for (const auto& [p, q] : c) {
+    const cv::Vec3d a(p.x - mx, p.y - my, 1.0);
+    AtA += a * a.t();
+    for (int r = 0; r < 3; ++r) AtB(r, 0) += a[r] * q.x, AtB(r, 1) += a[r] * q.y;
+  }
+  cv::Matx32d X;
+  if (!cv::solve(AtA, AtB, X, cv::DECOMP_CHOLESKY)) return false;
+  if (cv::determinant(AtA) < 1e-9 * std::pow(cv::trace(AtA), 3)) return false;
+  // x' = X(0,0) (x - mx) + X(1,0) (y - my) + X(2,0)
+  const cv::Matx33d M(X(0, 0), X(1, 0), X(2, 0), X(0, 1), X(1, 1), X(2, 1), 0, 0, 1);
+  const cv::Matx33d C(1, 0, -mx, 0, 1, -my, 0, 0, 1);
+  *T = M * C;
+  return true;
+}
+
+bool FitHomography(const Corr& c, cv::Matx33d* T) {
+  if (c.size() < 8) return false;
+  std::vector<cv::Point2f> s, d;
+  s.reserve(c.size()), d.reserve(c.size());
+  for (const auto& [p, q] : c) s.push_back(p), d.push_back(q);
+  cv::Mat H = cv::findHomography(s, d, 0);
+  if (H.empty()) return false;
+  H.convertTo(H, CV_64F);
+  if (std::abs(H.at<double>(2, 2)) < 1e-12) return false;
+  H /= H.at<double>(2, 2);
+  *T = cv::Matx33d(H);
+  return true;
+}
+
+bool Fit(Model m, const Corr& c, cv::Matx33d* T) {
+  switch (m) {
+    case Model::kSimilarity: return FitSimilarity(c, T);
+    case Model::kAffine: return FitAffine(c, T);
+    default: return FitHomography(c, T);
+  }
+}
+
+// Local scale and rotation of T at point p (Jacobian), for plausibility checks.
+bool LocalScaleRotation(const cv::Matx33d& T, cv::Point2f p, double* scale, double* rot_deg) {
+  const double e = 1.0;
+  const Contour q = TransformPoints(T, {p, p + cv::Point2f(float(e), 0), p + cv::Point2f(0, float(e))});
+  const cv::Point2f dx = (q[1] - q[0]) / e, dy = (q[2] - q[0]) / e;
+  const double det = double(dx.x) * dy.y - double(dx.y) * dy.x;
+  if (!(det > 0)) return false;  // reflection or degenerate
+  *scale = std::sqrt(det);
+  *rot_deg = std::atan2(dx.y - dy.x, dx.x + dy.y) * 180.0 / CV_PI;
+  return std::isfinite(*scale);
+}
+
+// ---- depth-side lookup: distance to / nearest point of / id of the nearest
+// depth contour, on a raster of the depth contours ---------------------------
+
+class DepthIndex {
+ public:
+  DepthIndex(const std::vector<Contour>& regions, double margin) {
+    float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (const auto& c : regions)
+      for (const auto& p : c) x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
+    extent_ = cv::Rect2d(x0, y0, x1 - x0, y1 - y0);
+    ox_ = x0 - margin, oy_ = y0 - margin;
+    const double w = x1 - x0 + 2 * margin, h = y1 - y0 + 2 * margin;
+    s_ = std::min(1.0, 3000.0 / std::max(w, h));
+    const int W = int(std::ceil(w * s_)) + 2, H = int(std::ceil(h * s_)) + 2;
+    cv::Mat img(H, W, CV_8U, cv::Scalar(255));
+    cv::Mat ids(H, W, CV_32S, cv::Scalar(-1));
+    for (size_t r = 0; r < regions.size(); ++r) {
+      std::vector<cv::Point> pts;
+      for (const auto& p : regions[r]) pts.emplace_back(int(std::lround((p.x - ox_) * s_)), int(std::lround((p.y - oy_) * s_)));
+      const std::vector<std::vector<cv::Point>> poly{pts};
+      cv::polylines(img, poly, true, cv::Scalar(0), 1, cv::LINE_8);
+      cv::polylines(ids, poly, true, cv::Scalar(double(r)), 1, cv::LINE_8);
+    }
+    cv::distanceTransform(img, dist_, labels_, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+    double maxl = 0;
+    cv::minMaxLoc(labels_, nullptr, &maxl);
+    pos_.assign(size_t(maxl) + 1, cv::Point2f(0, 0));
+    region_.assign(size_t(maxl) + 1, -1);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        if (img.at<uchar>(y, x) == 0) {
+          const int l = labels_.at<int>(y, x);
+          pos_[l] = cv::Point2f(float(x / s_ + ox_), float(y / s_ + oy_));
+          region_[l] = ids.at<int>(y, x);
+        }
+  }
+  // false when p is outside the raster
+  bool Lookup(cv::Point2f p, float* d, int* region, cv::Point2f* nearest) const {
+    const int x = int(std::lround((p.x - ox_) * s_)), y = int(std::lround((p.y - oy_) * s_));
+    if (!(x >= 0 && y >= 0 && x < dist_.cols && y < dist_.rows)) return false;
+    const int l = labels_.at<int>(y, x);
+    *d = float(dist_.at<float>(y, x) / s_);
+    *region = region_[l];
+    *nearest = pos_[l];
+    return true;
+  }
+  const cv::Rect2d& extent() const { return extent_; }
+
+ private:
+  double ox_ = 0, oy_ = 0, s_ = 1;
+  cv::Rect2d extent_;
+  cv::Mat dist_, labels_;
+  std::vector<cv::Point2f> pos_;
+  std::vector<int> region_;
+};
+
+struct Region {
+  int index = -1;       // in the caller's vector
+  ShapeDescriptor desc;  // full descriptor (points = N resampled points)
+  Contour poly;          // contour simplified to 0.5 px, for exact closest points
+  cv::Point2f centroid;
+};
+
+// Exact closest point of a closed polyline to p.
+cv::Point2f ClosestOnPolyline(const Contour& poly, cv::Point2f p, double* dist) {
+  double best = std::numeric_limits<double>::max();
+  cv::Point2f bp = p;
+  for (size_t i = 0, n = poly.size(); i < n; ++i) {
+    const cv::Point2f a = poly[i], b = poly[(i + 1) % n];
+    const cv::Point2f ab = b - a;
+    const double l2 = ab.dot(ab);
+    double t = l2 > 0 ? (p - a).dot(ab) / l2 : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    const cv::Point2f q(float(a.x + t * ab.x), float(a.y + t * ab.y));
+    const double d = cv::norm(p - q);
+    if (d < best) best = d, bp = q;
+  }
+  *dist = best;
+  return bp;
+}
+
+struct Evaluation {
+  std::vector<std::pair<int, int>> pairs;  // (photo, depth) positions in the Region vectors
+  Corr corr;                               // raster closest points, within tol
+  double mean_dist = 0;
+  int count() const { return int(pairs.size()); }
+};
+
+class Verifier {
+ public:
+  Verifier(const std::vector<Region>& photo, const std::vector<Region>& depth, const DepthIndex& index,
+           const RegistrationOptions& opt)
+      : photo_(photo), depth_(depth), index_(index), opt_(opt) {}
+
+  Evaluation Evaluate(const cv::Matx33d& T, double tol) const {
+    struct Cand { int p, d, votes; double dist; };
+    std::vector<Cand> cands;
+    std::vector<std::pair<int, int>> votes;  // (depth region, votes)
+    std::vector<double> dsum;
+    for (int p = 0; p < int(photo_.size()); ++p) {
+      const Contour proj = TransformPoints(T, photo_[p].desc.points);
+      votes.clear(), dsum.clear();
+      for (const auto& q : proj) {
+        float d; int r; cv::Point2f nq;
+        if (!index_.Lookup(q, &d, &r, &nq) || d > tol || r < 0) continue;
+        size_t k = 0;
+        while (k < votes.size() && votes[k].first != r) ++k;
+        if (k == votes.size()) votes.emplace_back(r, 0), dsum.push_back(0);
+        ++votes[k].second, dsum[k] += d;
+      }
+      if (votes.empty()) continue;
+      size_t bk = 0;
+      for (size_t k = 1; k < votes.size(); ++k) if (votes[k].second > votes[bk].second) bk = k;
+      const int n = int(proj.size());
+      if (votes[bk].second < opt_.inlier_fraction * n) continue;
+      const int d = votes[bk].first;
+      const double area = SignedArea(proj);
+      if (!(area > 0)) continue;
+      const double ratio = area / std::max(depth_[d].desc.area, 1e-9);
+      if (ratio > opt_.max_area_ratio || ratio < 1.0 / opt_.max_area_ratio) continue;
+      cands.push_back({p, d, votes[bk].second, dsum[bk] / votes[bk].second});
+    }
+    std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) {
+      return a.votes > b.votes || (a.votes == b.votes && (a.dist < b.dist || (a.dist == b.dist && a.p < b.p)));
+    });
+    Evaluation e;
+    std::vector<char> taken(depth_.size(), 0);
+    double sum = 0;
+    for (const Cand& c : cands) {
+      if (taken[c.d]) continue;
+      taken[c.d] = 1;
+      e.pairs.emplace_back(c.p, c.d);
+      sum += c.dist;
+      const Contour proj = TransformPoints(T, photo_[c.p].desc.points);
+      for (size_t j = 0; j < proj.size(); ++j) {
+        float d; int r; cv::Point2f nq;
+        if (index_.Lookup(proj[j], &d, &r, &nq) && d <= tol && r == c.d) e.corr.emplace_back(photo_[c.p].desc.points[j], nq);
+      }
+    }
+    e.mean_dist = e.pairs.empty() ? 0 : sum / double(e.pairs.size());
+    return e;
+  }
+
+  // Exact closest-point correspondences for fixed region pairs; trimmed.
+  Corr ClosestPoints(const cv::Matx33d& T, const std::vector<std::pair<int, int>>& pairs, double max_dist,
+                     double* rms) const {
+    Corr c;
+    double ss = 0;
+    for (const auto& [p, d] : pairs) {
+      const Contour& src = photo_[p].desc.points;
+      const Contour proj = TransformPoints(T, src);
+      for (size_t j = 0; j < proj.size(); ++j) {
+        double dist;
+        const cv::Point2f q = ClosestOnPolyline(depth_[d].poly, proj[j], &dist);
+        if (dist <= max_dist) c.emplace_back(src[j], q), ss += dist * dist;
+      }
+    }
+    *rms = c.empty() ? 1e9 : std::sqrt(ss / double(c.size()));
+    return c;
+  }
+
+  // Inputs mapped into the other side's extent: (photo regions whose projected
+  // centroid lies in the depth extent, depth regions inside the hull of the
+  // projected photo regions).
+  std::pair<int, int> Overlap(const cv::Matx33d& T) const {
+    const cv::Rect2d& ext = index_.extent();
+    int np = 0;
+    Contour all;
+    for (const auto& r : photo_) {
+      const Contour c = TransformPoints(T, {r.centroid});
+      if (ext.contains(cv::Point2d(c[0]))) ++np;
+      const Contour proj = TransformPoints(T, r.desc.points);
+      all.insert(all.end(), proj.begin(), proj.end());
+    }
+    int nd = 0;
+    if (all.size() >= 3) {
+      Contour hull;
+      cv::convexHull(all, hull);
+      for (const auto& r : depth_)
+        if (cv::pointPolygonTest(hull, r.centroid, false) >= 0) ++nd;
+    }
+    return {np, nd};
+  }
+
+ private:
+  const std::vector<Region>& photo_;
+  const std::vector<Region>& depth_;
+  const DepthIndex& index_;
+  const RegistrationOptions& opt_;
+};
+
+std::vector<Region> Prepare(const std::vector<Contour>& in, const RegistrationOptions& opt) {
+  std::vector<Region> out;
+  for (int i = 0; i < int(in.size()); ++i) {
+    const Contour& c = in[i];
+    if (c.size() < 3) continue;
+    bool finite = true;
+    for (const auto& p : c) finite = finite && std::isfinite(p.x) && std::isfinite(p.y);
+    if (!finite || std::abs(SignedArea(c)) < std::max(opt.min_region_area, 1e-6)) continue;
+    Region r;
+    r.index = i;
+    r.desc = DescribeContour(c, opt.shape);
+    if (r.desc.empty()) continue;
+    r.desc.region = i;
+    cv::approxPolyDP(c, r.poly, 0.5, true);
+    if (r.poly.size() < 3) r.poly = c;
+    cv::Point2f m(0, 0);
+    for (const auto& p : r.desc.points) m += p;
+    r.centroid = m * (1.0f / float(r.desc.points.size()));
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+struct Hypothesis {
+  int p, dd;     // photo region position, depth descriptor position
+  int shift;
+  double rank, cost;
+};
+
+}  // namespace
+
+// ---- principal directions (§7.2.4) ----------------------------------------
+
+namespace {
+std::optional<PrincipalDirections> DirectionsFromEdges(const cv::Mat& edges, double min_len) {
+  std::vector<cv::Vec4i> lines;
+  cv::HoughLinesP(edges, lines, 1, CV_PI / 180, 20, min_len, 3);
+  if (lines.size() < 6) return std::nullopt;
+  double h[36] = {0};
+  for (const auto& l : lines) {
+    const double dx = l[2] - l[0], dy = l[3] - l[1];
+    double a = std::atan2(dy, dx) * 180.0 / CV_PI;
+    a = std::fmod(a + 360.0, 180.0);
+    h[std::min(35, int(a / 5.0))] += std::hypot(dx, dy);
+  }
+  const int b1 = int(std::max_element(h, h + 36) - h);
+  const double total = std::accumulate(h, h + 36, 0.0);
+  auto refine = [&](int b) {  // weighted mean of the 3 bins around the peak
+    const double l = h[(b + 35) % 36], c = h[b], r = h[(b + 1) % 36];
+    return std::fmod((b + 0.5) * 5.0 + 5.0 * (r - l) / std::max(l + c + r, 1e-9) + 180.0, 180.0);
+  };
+  int b2 = -1;
+  for (int b = 0; b < 36; ++b) {
+    const int dist = std::min(std::abs(b - b1), 36 - std::abs(b - b1));
+    if (dist >= 9 && (b2 < 0 || h[b] > h[b2])) b2 = b;
+  }
+  // a distinct peak: clearly above the uniform level (36 bins)
+  if (h[b1] < 3.0 * total / 36 || b2 < 0 || h[b2] < 1.5 * total / 36) return std::nullopt;
+  return PrincipalDirections{refine(b1), refine(b2)};
+}
+}  // namespace
+
+std::optional<PrincipalDirections> DetectPrincipalDirections(const cv::Mat& image) {
+  if (image.empty()) return std::nullopt;
+  cv::Mat gray = image;
+  if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  if (gray.depth() != CV_8U) gray.convertTo(gray, CV_8U);
+  cv::Mat edges;
+  cv::Canny(gray, edges, 50, 150);
+  return DirectionsFromEdges(edges, std::max(10.0, 0.02 * std::max(image.cols, image.rows)));
+}
+
+std::optional<PrincipalDirections> DetectPrincipalDirections(const std::vector<Contour>& regions) {
+  float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
+  for (const auto& c : regions)
+    for (const auto& p : c) x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
+  if (!(x1 > x0 && y1 > y0)) return std::nullopt;
+  const double s = std::min(1.0, 2000.0 / std::max(x1 - x0, y1 - y0));
+  cv::Mat img(int((y1 - y0) * s) + 3, int((x1 - x0) * s) + 3, CV_8U, cv::Scalar(0));
+  for (const auto& c : regions) {
+    std::vector<cv::Point> pts;
+    for (const auto& p : c) pts.emplace_back(int(std::lround((p.x - x0) * s)) + 1, int(std::lround((p.y - y0) * s)) + 1);
+    cv::polylines(img, std::vector<std::vector<cv::Point>>{pts}, true, cv::Scalar(255), 1, cv::LINE_8);
+  }
+  return DirectionsFromEdges(img, 10.0);
+}
+
+// ---- registration ------------------------------------------------------------
+
+Registration RegisterContours(const std::vector<Contour>& photo_regions, const std::vector<Contour>& depth_regions,
+                              const RegistrationOptions& opt) {
+  opt.Check();
+  Registration res;
+  Timer timer;
+  const std::vector<Region> photo = Prepare(photo_regions, opt);
+  const std::vector<Region> depth = Prepare(depth_regions, opt);
+  if (photo.empty() || depth.empty()) {
+    res.reason = std::string("no registration found: no usable ") + (photo.empty() ? "photo" : "depth") +
+                 " regions (need closed contours of >= 3 points and area >= min_region_area)";
+    res.match_ms = timer.ElapsedMs();
+    return res;
+  }
+  if (int(std::min(photo.size(), depth.size())) < opt.min_regions) {
+    res.reason = "no registration found: fewer regions than min_regions (" + std::to_string(photo.size()) +
+                 " photo, " + std::to_string(depth.size()) + " depth)";
+    res.match_ms = timer.ElapsedMs();
+    return res;
+  }
+
+  // 1. depth descriptors: full + partial
+  std::vector<ShapeDescriptor> ddesc;
+  std::vector<int> ddesc_region;  // position in `depth`
+  for (int d = 0; d < int(depth.size()); ++d) {
+    ddesc.push_back(depth[d].desc), ddesc_region.push_back(d);
+    if (opt.partial_descriptors)
+      for (auto& pd : DescribePartials(depth_regions[depth[d].index], opt.shape, opt.partial_min_corners,
+                                       opt.max_partials_per_region)) {
+        pd.region = depth[d].index;
+        ddesc.push_back(std::move(pd)), ddesc_region.push_back(d);
+      }
+  }
+
+  // 2. matching: every depth descriptor against every photo region
+  const int P = int(photo.size());
+  cv::Mat full_cost(P, int(depth.size()), CV_64F, cv::Scalar(1.0));  // photo x depth, full descriptors
+  std::vector<Hypothesis> hyps;
+  std::vector<std::vector<double>> costs(P);
+  for (int dd = 0; dd < int(ddesc.size()); ++dd) {
+    std::vector<std::pair<double, int>> best;  // (cost, photo)
+    for (int p = 0; p < P; ++p) {
+      costs[p] = ShiftCosts(photo[p].desc, ddesc[dd]);
+      const double c = *std::min_element(costs[p].begin(), costs[p].end());
+      if (!ddesc[dd].partial) full_cost.at<double>(p, ddesc_region[dd]) = c;
+      best.emplace_back(c, p);
+    }
+    std::sort(best.begin(), best.end());
+    const double c0 = best[0].first, c1 = best.size() > 1 ? best[1].first : 1.0;
+    for (int k = 0; k < std::min(opt.candidates_per_region, P); ++k) {
+      const auto [c, p] = best[k];
+      double rank = k == 0 ? c / std::max(c1, 1e-9) : c / std::max(c0, 1e-9);
+      // partial descriptors enlarge the search space (§7.2.3): their pairs
+      // are tried after the distinctive full-contour pairs
+      if (ddesc[dd].partial) rank += opt.partial_rank_penalty;
+      for (const ShiftCost& s : BestShifts(costs[p], opt.shifts_per_pair)) hyps.push_back({p, dd, s.shift, rank, s.cost});
+    }
+  }
+  std::stable_sort(hyps.begin(), hyps.end(), [](const Hypothesis& a, const Hypothesis& b) {
+    return a.rank < b.rank || (a.rank == b.rank && a.cost < b.cost);
+  });
+  if (int(hyps.size()) > opt.max_hypotheses) {  // top half by rank, the rest sampled (seeded)
+    const size_t keep = size_t(opt.max_hypotheses / 2);
+    std::mt19937_64 rng(opt.seed);
+    std::shuffle(hyps.begin() + keep, hyps.end(), rng);
+    hyps.resize(opt.max_hypotheses);
+  }
+  res.match_ms = timer.ElapsedMs();
+  timer.Restart();
+
+  // 3.-4. hypotheses + propagation
+  const DepthIndex index(depth_regions.empty() ? std::vector<Contour>{} : [&] {
+    std::vector<Contour> v;
+    for (const auto& r : depth) v.push_back(depth_regions[r.index]);
+    return v;
+  }(), 2 * opt.inlier_px * std::max(1.0, opt.max_scale) + 2);
+  const Verifier verifier(photo, depth, index, opt);
+  const Model grow_model = opt.model == Model::kSimilarity ? Model::kSimilarity : Model::kAffine;
+
+  std::vector<double> allowed_rot;  // principal-direction prediction of the rotation
+  if (opt.use_principal_directions) {
+    const auto pd_photo = DetectPrincipalDirections(photo_regions);
+    const auto pd_depth = DetectPrincipalDirections(depth_regions);
+    if (pd_photo && pd_depth)
+      for (double base : {pd_depth->first_deg - pd_photo->first_deg, pd_depth->first_deg - pd_photo->second_deg})
+        for (int k = 0; k < 4; ++k) allowed_rot.push_back(base + 90.0 * k);
+  }
+  auto rotation_allowed = [&](double rot) {
+    for (double a : allowed_rot) {
+      double d = std::fmod(std::abs(rot - a), 360.0);
+      d = std::min(d, 360.0 - d);
+      if (d <= opt.principal_tolerance_deg) return true;
+    }
+    return false;
+  };
+
+  struct Candidate {
+    Evaluation eval;
+    cv::Matx33d T = cv::Matx33d::eye();
+    bool from_restricted = false;
+    double tol = 0;
+    bool tried = false;
+  };
+  auto acceptable = [&](const Evaluation& e, const cv::Matx33d& T, double* ratio) {
+    const auto [np, nd] = verifier.Overlap(T);
+    *ratio = double(e.count()) / double(std::max(1, std::min(np, nd)));
+    return e.count() >= opt.min_regions && *ratio >= opt.min_inlier_ratio;
+  };
+  // The few best distinct consistent sets (largest first); a set that shares
+  // half of its pairs with a kept one is the same solution — the better stays.
+  std::vector<Candidate> cands;
+  constexpr int kMaxCandidates = 4;
+  auto offer = [&](Candidate c) {
+    auto better = [](const Evaluation& a, const Evaluation& b) {
+      return a.count() > b.count() || (a.count() == b.count() && a.mean_dist < b.mean_dist);
+    };
+    for (auto& k : cands) {
+      int shared = 0;
+      for (const auto& pr : c.eval.pairs)
+        shared += std::find(k.eval.pairs.begin(), k.eval.pairs.end(), pr) != k.eval.pairs.end();
+      if (2 * shared >= std::min(c.eval.count(), k.eval.count())) {
+        if (!k.tried && better(c.eval, k.eval)) k = std::move(c);
+        return;
+      }
+    }
+    cands.push_back(std::move(c));
+    std::stable_sort(cands.begin(), cands.end(), [&](const Candidate& a, const Candidate& b) { return better(a.eval, b.eval); });
+    if (int(cands.size()) > kMaxCandidates) cands.pop_back();
+  };
+  auto explained = [&](int p, int d) {
+    for (const auto& k : cands)
+      if (std::find(k.eval.pairs.begin(), k.eval.pairs.end(), std::make_pair(p, d)) != k.eval.pairs.end()) return true;
+    return false;
+  };
+  const int min_side = int(std::min(photo.size(), depth.size()));
+  int best_count = 0;
+  double best_ratio = 0;
+
+  // Search from hypothesis `next` of `pass` until the list is exhausted or a
+  // strong consistent set is found (then stop early). Returns false when exhausted.
+  size_t next = 0;
+  int pass = allowed_rot.empty() ? 1 : 0;
+  auto search = [&]() {
+    for (; pass < 2; ++pass, next = 0) {
+      for (; next < hyps.size() && res.hypotheses < opt.max_hypotheses; ++next) {
+        const Hypothesis& h = hyps[next];
+        const int d = ddesc_region[h.dd];
+        const ShapeDescriptor& pdsc = photo[h.p].desc;
+        const ShapeDescriptor& ddsc = ddesc[h.dd];
+        const int n = int(pdsc.points.size());
+        Corr seed;
+        for (int j = 0; j < n; ++j) seed.emplace_back(pdsc.points[j], ddsc.points[(j + h.shift) % n]);
+        cv::Matx33d T;
+        if (!FitSimilarity(seed, &T)) continue;
+        double scale, rot;
+        if (!LocalScaleRotation(T, photo[h.p].centroid, &scale, &rot)) continue;
+        if (scale < opt.min_scale || scale > opt.max_scale) continue;
+        if (!allowed_rot.empty() && rotation_allowed(rot) != (pass == 0)) continue;
+        // the pair itself must align: RMS of the seed fit vs the depth region size
+        double ss = 0;
+        const Contour proj = TransformPoints(T, pdsc.points);
+        for (int j = 0; j < n; ++j) ss += std::pow(cv::norm(proj[j] - seed[j].second), 2);
+        if (std::sqrt(ss / n) > 0.08 * ddsc.scale + opt.inlier_px) continue;
+        if (explained(h.p, d)) continue;  // already part of a kept consistent set
+        ++res.hypotheses;
+        // tolerances are in depth px; photo-side noise grows with the scale
+        const double tol = opt.inlier_px * std::max(1.0, scale);
+        Evaluation e;
+        std::vector<std::pair<int, int>> prev;
+        for (int it = 0; it < 8; ++it) {
+          e = verifier.Evaluate(T, it == 0 ? 2 * tol : tol);
+          if (e.count() == 0) break;
+          const Model m = e.count() >= 3 ? grow_model : Model::kSimilarity;
+          cv::Matx33d Tn;
+          if (!Fit(m, e.corr, &Tn)) break;
+          T = Tn;
+          if (it > 0 && e.pairs == prev) break;
+          prev = e.pairs;
+        }
+        e = verifier.Evaluate(T, tol);
+        double ratio = 0;
+        const bool acc = acceptable(e, T, &ratio);
+        if (e.count() > best_count) best_count = e.count(), best_ratio = ratio;
+        if (!acc) continue;
+        const int count = e.count();
+        offer(Candidate{std::move(e), T, pass == 0, tol, false});
+        if (ratio >= 0.6 && count >= std::max(2 * opt.min_regions, min_side / 3)) { ++next; return true; }
+      }
+      if (pass == 0) {  // principal-direction pass over: try its candidates first
+        ++pass, next = 0;
+        return true;
+      }
+    }
+    return false;
+  };
+
+  // 6. refinement per model (ICP on exact closest contour points), model
+  // choice, final checks. Fills res on success, returns a reason on failure.
+  struct Fitted { Model m; cv::Matx33d T; double rms; bool ok; };
+  auto finish = [&](const Candidate& cand) -> std::string {
+    const double tol = cand.tol;
+    auto refine = [&](Model m, cv::Matx33d T, const std::vector<std::pair<int, int>>& pairs) {
+      double rms = 1e9;
+      bool ok = true;
+      for (int it = 0; it < 12; ++it) {
+        Corr c = verifier.ClosestPoints(T, pairs, 2 * tol, &rms);
+        // trim the worst (closest point on the wrong edge near corners)
+        std::vector<double> dists;
+        for (const auto& [p, q] : c) dists.push_back(cv::norm(TransformPoints(T, {p})[0] - q));
+        if (dists.size() < 8) { ok = false; break; }
+        std::vector<double> sorted = dists;
+        std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+        const double cut = std::max(3.0 * sorted[sorted.size() / 2], 1.0);
+        Corr kept;
+        for (size_t i = 0; i < c.size(); ++i) if (dists[i] <= cut) kept.push_back(c[i]);
+        cv::Matx33d Tn;
+        if (!Fit(m, kept, &Tn)) { ok = false; break; }
+        const double change = cv::norm(cv::Mat(Tn - T));
+        T = Tn;
+        if (change < 1e-6) break;
+      }
+      verifier.ClosestPoints(T, pairs, 2 * tol, &rms);
+      return Fitted{m, T, rms, ok};
+    };
+    std::vector<std::pair<int, int>> pairs = cand.eval.pairs;
+    const std::vector<Model> models = opt.model == Model::kAuto
+        ? std::vector<Model>{Model::kSimilarity, Model::kAffine, Model::kPerspective}
+        : std::vector<Model>{opt.model};
+    std::vector<Fitted> fits;
+    int chosen = -1;
+    cv::Matx33d start = cand.T;
+    for (int round = 0; round < 4; ++round) {
+      fits.clear();
+      for (Model m : models) fits.push_back(refine(m, start, pairs));
+      // kAuto: the simplest model unless a more complex one lowers the RMS by
+      // >= 10 % and 0.1 px; affine needs >= 4 region pairs, perspective >= 8
+      chosen = -1;
+      int most_accurate = -1;
+      for (int i = 0; i < int(fits.size()); ++i) {
+        if (!fits[i].ok) continue;
+        if (most_accurate < 0 || fits[i].rms < fits[most_accurate].rms) most_accurate = i;
+        if (opt.model == Model::kAuto && ((fits[i].m == Model::kAffine && int(pairs.size()) < 4) ||
+                                          (fits[i].m == Model::kPerspective && int(pairs.size()) < 8)))
+          continue;
+        if (chosen < 0 || (fits[i].rms < 0.9 * fits[chosen].rms && fits[i].rms < fits[chosen].rms - 0.1)) chosen = i;
+      }
+      if (chosen < 0) break;
+      // propagate with the most accurate fit: the set may grow (and allow a
+      // richer model); stop when it does not
+      Evaluation fin = verifier.Evaluate(fits[most_accurate].T, tol);
+      if (fin.count() <= int(pairs.size())) break;
+      pairs = fin.pairs;
+      start = fits[most_accurate].T;
+    }
+    if (chosen < 0) return "refinement of the consistent set failed";
+    const Fitted f = fits[chosen];
+    double ratio;
+    // less evidence (few region pairs) -> demand a tighter fit
+    const double evidence = std::clamp((double(pairs.size()) - 1.0) / 5.0, 0.5, 1.0);
+    const double max_rms = evidence * opt.max_rms_px * tol / opt.inlier_px;
+    if (!acceptable(Evaluation{pairs, {}, 0}, f.T, &ratio) || f.rms > max_rms)
+      return cv::format("best consistent set fails the checks (%d region pairs, ratio %.2f, RMS %.2f px > %.2f)",
+                        int(pairs.size()), ratio, f.rms, max_rms);
+    double scale, rot;
+    if (!LocalScaleRotation(f.T, photo[pairs[0].first].centroid, &scale, &rot))
+      return "refined transform is degenerate or reflecting";
+    res.ok = true;
+    res.photo_to_depth = f.T;
+    res.model = ModelName(f.m);
+    res.rms_px = f.rms;
+    res.used_principal_directions = cand.from_restricted;
+    double rms;
+    res.correspondences = verifier.ClosestPoints(f.T, pairs, tol, &rms);
+    for (const auto& [p, d] : pairs) {
+      RegionMatch m;
+      m.a = photo[p].index, m.b = depth[d].index;
+      m.cost = full_cost.at<double>(p, d);
+      double second = 1.0;
+      for (int q = 0; q < P; ++q) if (q != p) second = std::min(second, full_cost.at<double>(q, d));
+      m.cost_ratio = m.cost / std::max(second, 1e-9);
+      m.shift = MatchDescriptors(photo[p].desc, depth[d].desc).shift;
+      res.region_matches.push_back(m);
+    }
+    res.reason = cv::format("%s, %d region pairs (ratio %.2f), RMS %.2f px, %d hypotheses", res.model.c_str(),
+                            int(pairs.size()), ratio, f.rms, res.hypotheses);
+    return {};
+  };
+
+  // 5. search, then try the kept consistent sets best first; continue the
+  // search while they fail and hypotheses remain
+  std::string why;
+  for (;;) {
+    const bool more = search();
+    for (auto& c : cands) {
+      if (c.tried) continue;
+      c.tried = true;
+      why = finish(c);
+      if (why.empty()) {
+        res.propagate_ms = timer.ElapsedMs();
+        return res;
+      }
+    }
+    if (!more) break;
+  }
+  res.reason = "no registration found: " +
+               (why.empty() ? cv::format("best hypothesis explains %d region pair(s) (need %d), ratio %.2f (need %.2f)",
+                                         best_count, opt.min_regions, best_ratio, opt.min_inlier_ratio)
+                            : why);
+  res.propagate_ms = timer.ElapsedMs();
+  return res;
+}
+
+}  // namespace mvkp

@@ -1,0 +1,113 @@
+// Aerial photo <-> LiDAR depth registration by region shape (thesis §7.2.3,
+// §7.2.4), on plain closed contours: building regions extracted from the
+// photo (ROI_a) and from the depth image (ROI_r), in pixels of each image.
+//
+// Algorithm (see register.cc for details):
+//  1. Describe every region by shape context (shape_context.h); depth regions
+//     with many corners also get partial-contour descriptors.
+//  2. For every depth descriptor, scan all photo descriptors with the best
+//     cyclic shift; keep the best few photo regions; cost ratio = best /
+//     second-best cost over distinct photo regions.
+//  3. Hypotheses, lowest cost ratio first: one region pair + one of its best
+//     shifts gives N point correspondences -> a similarity (least squares).
+//     Implausible ones (scale outside [min_scale, max_scale], poor fit of the
+//     pair itself, rotation away from the principal-direction prediction) are
+//     skipped.
+//  4. Propagation = verification: all photo regions are projected into the
+//     depth image; one is consistent with a depth region when most of its
+//     contour lies within inlier_px of that region's contour and areas agree.
+//     The transform is re-fitted on the consistent set (closest-point
+//     correspondences) and propagated again until the set stops growing.
+//  5. The few largest distinct consistent sets that reach min_regions and
+//     min_inlier_ratio of the regions the transform maps into the other
+//     image's extent are kept (the search stops early on a strong one).
+//  6. Each, largest first: least squares (ICP on exact closest contour
+//     points) of the similarity, affine and perspective models, propagating
+//     again with the most accurate one while the set grows; kAuto keeps the
+//     simplest model whose RMS is not clearly beaten by a more complex one
+//     (affine needs >= 4 region pairs, perspective >= 8). Accepted when the
+//     RMS is <= max_rms_px (scaled); else the next set, then the search
+//     continues; when all fail: ok == false, "no registration found: ...".
+// Deterministic: the only randomness (sampling hypotheses beyond the
+// top-ranked ones) uses `seed`.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "mvkp/shapes/shape_context.h"
+
+namespace mvkp {
+
+struct RegionMatch {
+  int a = -1, b = -1;     // photo region index, depth region index
+  double cost = 1;        // shape-context matching cost at the best shift, [0, 1]
+  double cost_ratio = 1;  // best / second-best cost (lower = more distinctive)
+  int shift = 0;          // resampled photo point j <-> resampled depth point (j + shift) % N
+};
+
+struct RegistrationOptions {
+  ShapeContextOptions shape;          // descriptor parameters (N_CPL = shape.points)
+  bool partial_descriptors = true;    // partial-contour descriptors for depth regions ...
+  int partial_min_corners = 6;        // ... with at least this many polygon corners
+  int max_partials_per_region = 4;
+  double partial_rank_penalty = 1.0;  // added to the cost ratio of partial-descriptor hypotheses
+  double min_region_area = 16;        // px^2; smaller contours are ignored (both sides)
+  int candidates_per_region = 3;      // photo matches kept per depth descriptor
+  int shifts_per_pair = 4;            // local-minimum shifts tried per region pair
+  int max_hypotheses = 600;           // seed pairs verified at most
+  double min_scale = 0.2, max_scale = 5.0;  // plausible photo -> depth scale
+  double inlier_px = 6;               // propagation: contour distance in depth px, times
+                                      //   max(1, photo->depth scale) (photo noise grows with it)
+  double inlier_fraction = 0.7;       // of a projected photo contour's points near one depth contour
+  double max_area_ratio = 2.0;        // projected photo area vs depth area, either way
+  int min_regions = 4;                // consistent region pairs needed to accept
+  double min_inlier_ratio = 0.3;      // consistent / regions mapped into the overlap
+  double max_rms_px = 2.5;            // final RMS contour distance needed to accept (scaled as
+                                      //   inlier_px, and by clamp((pairs - 1) / 5, 0.5, 1): few pairs, tighter)
+  bool use_principal_directions = false; // §7.2.4: try hypotheses whose rotation fits the
+                                         //   principal directions first; falls back to all
+  double principal_tolerance_deg = 12;   // allowed rotation deviation from a predicted one
+  enum class Model { kSimilarity, kAffine, kPerspective, kAuto } model = Model::kAuto;
+  std::uint64_t seed = 1;
+  void Check() const;  // throws Error(kInvalidArgument)
+};
+
+struct Registration {
+  bool ok = false;
+  std::string reason;                 // "no registration found: ..." when !ok, else a summary
+  cv::Matx33d photo_to_depth = cv::Matx33d::eye();  // when ok
+  std::string model;                  // "similarity" | "affine" | "perspective"
+  std::vector<std::pair<cv::Point2f, cv::Point2f>> correspondences;  // photo px -> depth px
+  std::vector<RegionMatch> region_matches;  // accepted region pairs (propagated ones with their matching cost)
+  double rms_px = 0;                  // RMS contour distance of the correspondences, depth px
+  int hypotheses = 0;                 // seed hypotheses verified
+  bool used_principal_directions = false;  // the restricted search produced the result
+  double match_ms = 0, propagate_ms = 0;   // description + matching; hypotheses + refinement
+};
+
+Registration RegisterContours(const std::vector<Contour>& photo_regions,
+                              const std::vector<Contour>& depth_regions,
+                              const RegistrationOptions& options = {});
+
+// Applies a 3x3 transform to points (perspective division).
+Contour TransformPoints(const cv::Matx33d& T, const Contour& points);
+
+// Principal directions (§7.2.4): Canny -> probabilistic Hough -> 36-bin
+// histogram of segment directions (length-weighted, over [0, 180) degrees);
+// the highest peak, refined by interpolating the 3 bins around it, is the
+// first direction (degrees, [0, 180)); the second is the highest peak at
+// least 45 degrees away. nullopt when too few segments or no distinct peak.
+struct PrincipalDirections {
+  double first_deg = 0, second_deg = 0;
+};
+std::optional<PrincipalDirections> DetectPrincipalDirections(const cv::Mat& image);
+// The same on region contours (drawn into an edge image, Canny skipped).
+std::optional<PrincipalDirections> DetectPrincipalDirections(const std::vector<Contour>& regions);
+
+}  // namespace mvkp
