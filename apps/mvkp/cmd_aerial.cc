@@ -1,0 +1,300 @@
+// mvkp segment depth|optical IMAGE: building regions of one image.
+// mvkp register DEPTH OPTICAL: an aerial photo onto LiDAR depth with no
+// georeference (thesis ch. 7, stage 1): building regions from both
+// (src/mvkp/buildings, src/mvkp/ortho), matched by shape contexts and
+// propagated to a global transform (src/mvkp/shapes).
+//
+// register --json answers in the correspondence JSON (image 1 = the photo,
+// image 2 = the depth image; "homography" maps photo pixels to depth pixels,
+// null when no registration is found) with the registration's own fields:
+// ok, reason, model, regions, region_matches, time_ms per stage.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "commands.h"
+#include "mvkp/buildings/depth_regions.h"
+#include "mvkp/core/error.h"
+#include "mvkp/core/image_io.h"
+#include "mvkp/core/timer.h"
+#include "mvkp/geo/raster.h"
+#include "mvkp/ortho/optical_regions.h"
+#include "mvkp/shapes/register.h"
+
+namespace mvkp::cli {
+namespace {
+
+using Json = nlohmann::json;
+
+// Resident memory from /proc/self/status (VmHWM is the peak; getrusage's
+// ru_maxrss would carry the high-water mark of the process that exec'd us).
+double StatusMb(const char* key) {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  const std::string k = key;
+  while (std::getline(f, line))
+    if (line.rfind(k, 0) == 0) return std::stod(line.substr(k.size())) / 1024.0;  // kB
+  return 0;
+}
+double PeakRssMb() { return StatusMb("VmHWM:"); }
+double RssMb() { return StatusMb("VmRSS:"); }
+
+Json PointsJson(const std::vector<cv::Point>& c) {
+  Json a = Json::array();
+  for (const auto& p : c) a.push_back({p.x, p.y});
+  return a;
+}
+
+std::vector<Contour> ToContours(const std::vector<std::vector<cv::Point>>& in) {
+  std::vector<Contour> out;
+  out.reserve(in.size());
+  for (const auto& c : in) out.emplace_back(c.begin(), c.end());
+  return out;
+}
+
+geo::DepthRaster LoadDepth(const std::string& path, double res_m) {
+  geo::DepthReadOptions o;
+  if (res_m > 0) o.las.res_m = res_m;
+  return geo::ReadDepthRaster(path, o);
+}
+
+// Heights as an 8-bit colour image for drawings.
+cv::Mat DepthColour(const cv::Mat1f& z) {
+  double lo = 0, hi = 1;
+  cv::Mat1b valid = (z == z);
+  cv::minMaxLoc(z, &lo, &hi, nullptr, nullptr, valid);
+  cv::Mat1b g;
+  z.convertTo(g, CV_8U, hi > lo ? 255.0 / (hi - lo) : 1.0, hi > lo ? -lo * 255.0 / (hi - lo) : 0.0);
+  g.setTo(0, ~valid);
+  cv::Mat c;
+  cv::applyColorMap(g, c, cv::COLORMAP_VIRIDIS);
+  return c;
+}
+
+// ----------------------------------------------------------------- segment
+
+struct SegmentArgs {
+  std::string kind, image, draw;
+  bool json = false;
+  double res_m = 0;
+};
+
+int RunSegment(const SegmentArgs& a) {
+  try {
+    Timer t;
+    Json out = {{"image", a.image}, {"kind", a.kind}};
+    Json regions = Json::array();
+    cv::Mat drawing;
+    if (a.kind == "depth") {
+      const geo::DepthRaster d = LoadDepth(a.image, a.res_m);
+      const double read_ms = t.ElapsedMs();
+      Timer ts;
+      const std::vector<BuildingRegion> r = SegmentDepth(d.z);
+      out["time_ms"] = {{"read", read_ms}, {"segment", ts.ElapsedMs()}};
+      out["size"] = {d.z.cols, d.z.rows};
+      out["res_m"] = d.res_m;
+      for (const auto& x : r)
+        regions.push_back({{"area_px", x.area}, {"height_m", x.height}, {"contour", PointsJson(x.contour)}});
+      if (!a.draw.empty()) drawing = DrawRegions(d.z, r);
+    } else {
+      const geo::OpticalImage img = geo::ReadOpticalImage(a.image);
+      const double read_ms = t.ElapsedMs();
+      Timer ts;
+      const std::vector<PhotoRegion> r = SegmentOptical(img.bgr);
+      out["time_ms"] = {{"read", read_ms}, {"segment", ts.ElapsedMs()}};
+      out["size"] = {img.bgr.cols, img.bgr.rows};
+      for (const auto& x : r)
+        regions.push_back({{"area_px", x.area}, {"confidence", x.confidence}, {"contour", PointsJson(x.contour)}});
+      if (!a.draw.empty()) drawing = DrawPhotoRegions(img.bgr, r);
+    }
+    out["regions"] = regions;
+    if (!a.draw.empty()) SaveImage(a.draw, drawing);
+    if (a.json) std::cout << out.dump() << std::endl;
+    else std::printf("%s: %zu building regions (%s)\n", a.image.c_str(), regions.size(), a.kind.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mvkp segment: %s\n", e.what());
+    return 1;
+  }
+}
+
+// ---------------------------------------------------------------- register
+
+struct RegisterArgs {
+  std::string depth, optical, draw, model = "auto";
+  bool json = false;
+  double res_m = 0;
+  int photo_max_side = 1200;
+  RegistrationOptions opt;
+};
+
+// Photo (left, scaled to the depth image's height) and depth (right), their
+// regions, the matched pairs joined, and when registered the photo's regions
+// projected onto the depth image (as thesis Figs 7.28-7.29).
+cv::Mat DrawRegistration(const cv::Mat& photo, const cv::Mat1f& depth, const std::vector<Contour>& pr,
+                         const std::vector<Contour>& dr, const Registration& reg) {
+  const double s = double(depth.rows) / std::max(1, photo.rows);
+  cv::Mat left;
+  cv::resize(photo, left, cv::Size(std::max(1, int(std::lround(photo.cols * s))), depth.rows), 0, 0, cv::INTER_AREA);
+  cv::Mat right = DepthColour(depth);
+  cv::Mat canvas(depth.rows, left.cols + right.cols, CV_8UC3);
+  left.copyTo(canvas(cv::Rect(0, 0, left.cols, left.rows)));
+  right.copyTo(canvas(cv::Rect(left.cols, 0, right.cols, right.rows)));
+  const cv::Point2f off(float(left.cols), 0.f);
+  auto poly = [&](const Contour& c, double scale, cv::Point2f shift, const cv::Scalar& col, int w) {
+    std::vector<cv::Point> p;
+    for (const auto& q : c) p.emplace_back(cv::Point(int(std::lround(q.x * scale + shift.x)), int(std::lround(q.y * scale + shift.y))));
+    if (p.size() >= 2) cv::polylines(canvas, p, true, col, w, cv::LINE_AA);
+  };
+  for (const auto& c : pr) poly(c, s, {0, 0}, {255, 200, 0}, 1);
+  for (const auto& c : dr) poly(c, 1.0, off, {255, 255, 255}, 1);
+  auto centroid = [](const Contour& c) {
+    cv::Point2f m(0, 0);
+    for (const auto& p : c) m += p;
+    return c.empty() ? m : m * (1.f / float(c.size()));
+  };
+  for (const auto& m : reg.region_matches) {
+    if (m.a < 0 || m.b < 0 || m.a >= int(pr.size()) || m.b >= int(dr.size())) continue;
+    const cv::Point2f a = centroid(pr[std::size_t(m.a)]) * float(s), b = centroid(dr[std::size_t(m.b)]) + off;
+    cv::line(canvas, a, b, {0, 220, 0}, 1, cv::LINE_AA);
+  }
+  if (reg.ok)
+    for (const auto& c : pr) poly(TransformPoints(reg.photo_to_depth, c), 1.0, off, {0, 0, 255}, 2);
+  const std::string text = reg.ok ? "registered (" + reg.model + ")" : reg.reason;
+  cv::putText(canvas, text.substr(0, 80), {8, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6, {0, 0, 0}, 3, cv::LINE_AA);
+  cv::putText(canvas, text.substr(0, 80), {8, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6, {255, 255, 255}, 1, cv::LINE_AA);
+  return canvas;
+}
+
+int RunRegister(RegisterArgs& a) {
+  try {
+    if (a.model == "similarity") a.opt.model = RegistrationOptions::Model::kSimilarity;
+    else if (a.model == "affine") a.opt.model = RegistrationOptions::Model::kAffine;
+    else if (a.model == "perspective") a.opt.model = RegistrationOptions::Model::kPerspective;
+    else a.opt.model = RegistrationOptions::Model::kAuto;
+    const double start_rss_mb = RssMb();
+    Timer total;
+    const geo::DepthRaster d = LoadDepth(a.depth, a.res_m);
+    const geo::OpticalImage img = geo::ReadOpticalImage(a.optical);
+    const double read_ms = total.ElapsedMs();
+    Timer td;
+    const std::vector<BuildingRegion> dregions = SegmentDepth(d.z);
+    const double depth_ms = td.ElapsedMs();
+    Timer tp;
+    // A photo much larger than needed is segmented at --photo-max-side and
+    // its contours scaled back: roofs stay tens of pixels wide, and memory
+    // and time follow the smaller image.
+    cv::Mat work = img.bgr;
+    double f = 1.0;
+    if (a.photo_max_side > 0 && std::max(work.cols, work.rows) > a.photo_max_side) {
+      f = double(a.photo_max_side) / std::max(work.cols, work.rows);
+      cv::resize(img.bgr, work, cv::Size(), f, f, cv::INTER_AREA);
+    }
+    const std::vector<PhotoRegion> pregions = SegmentOptical(work);
+    work.release();
+    const double photo_ms = tp.ElapsedMs();
+    std::vector<std::vector<cv::Point>> dc;
+    for (const auto& r : dregions) dc.push_back(r.contour);
+    const std::vector<Contour> dcont = ToContours(dc);
+    std::vector<Contour> pcont;
+    for (const auto& r : pregions) {
+      Contour c;
+      for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / f - 0.5), float((p.y + 0.5) / f - 0.5));
+      pcont.push_back(std::move(c));
+    }
+    const Registration reg = RegisterContours(pcont, dcont, a.opt);
+    const double total_ms = total.ElapsedMs();
+
+    Json out;
+    out["method"] = "mvkp-register";
+    out["ok"] = reg.ok;
+    out["reason"] = reg.reason;
+    out["model"] = reg.ok ? Json(reg.model) : Json(nullptr);
+    if (reg.ok) {
+      Json h = Json::array();
+      for (int r = 0; r < 3; ++r) h.push_back({reg.photo_to_depth(r, 0), reg.photo_to_depth(r, 1), reg.photo_to_depth(r, 2)});
+      out["homography"] = h;
+    } else {
+      out["homography"] = nullptr;
+    }
+    out["keypoints1"] = pregions.size();
+    out["keypoints2"] = dregions.size();
+    out["regions"] = {{"photo", pregions.size()}, {"depth", dregions.size()}};
+    Json matches = Json::array();
+    for (const auto& [p, q] : reg.correspondences) matches.push_back({p.x, p.y, q.x, q.y, 0.0, 1});
+    out["matches"] = matches;
+    Json rm = Json::array();
+    for (const auto& m : reg.region_matches)
+      rm.push_back({{"photo", m.a}, {"depth", m.b}, {"cost", m.cost}, {"cost_ratio", m.cost_ratio}});
+    out["region_matches"] = rm;
+    out["rms_px"] = reg.rms_px;
+    out["hypotheses"] = reg.hypotheses;
+    out["depth"] = {{"size", {d.z.cols, d.z.rows}}, {"res_m", d.res_m}};
+    out["photo"] = {{"size", {img.bgr.cols, img.bgr.rows}}};
+    out["time_ms"] = {{"read", read_ms},          {"segment_depth", depth_ms}, {"segment_photo", photo_ms},
+                      {"match", reg.match_ms},    {"propagate", reg.propagate_ms},
+                      {"query", total_ms - read_ms}, {"total", total_ms}};
+    out["peak_rss_mb"] = PeakRssMb();
+    // What the registration itself needed: the peak over the resident size at
+    // start (shared libraries, mostly OpenCV and GDAL's, ~75 MB of it).
+    out["peak_rss_above_start_mb"] = PeakRssMb() - start_rss_mb;
+    if (!a.draw.empty()) SaveImage(a.draw, DrawRegistration(img.bgr, d.z, pcont, dcont, reg));
+    if (a.json) {
+      std::cout << out.dump() << std::endl;
+    } else if (reg.ok) {
+      std::printf("registered (%s): %zu region pairs, RMS %.2f px, %.0f ms\n", reg.model.c_str(), reg.region_matches.size(),
+                  reg.rms_px, total_ms);
+    } else {
+      std::printf("%s (%zu photo / %zu depth regions, %.0f ms)\n", reg.reason.c_str(), pregions.size(), dregions.size(),
+                  total_ms);
+    }
+    return 0;  // "no registration found" is an answer, not an error
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mvkp register: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace
+
+void RegisterSegment(CLI::App& app, int* code) {
+  auto a = std::make_shared<SegmentArgs>();
+  auto* c = app.add_subcommand("segment", "Building regions of a depth image (LiDAR) or an aerial photo");
+  c->add_option("KIND", a->kind, "depth | optical")->required()->check(CLI::IsMember({"depth", "optical"}));
+  c->add_option("IMAGE", a->image, "GeoTIFF DSM/nDSM or LAS (depth), or a photo (optical)")->required();
+  c->add_option("--draw", a->draw, "write the regions over the image");
+  c->add_flag("--json", a->json, "regions as JSON (contours in pixels)");
+  c->add_option("--res", a->res_m, "LAS input: raster cell size, metres (default 0.5)")->check(CLI::Range(0.01, 100.0));
+  c->callback([a, code] { *code = RunSegment(*a); });
+}
+
+void RegisterRegister(CLI::App& app, int* code) {
+  auto a = std::make_shared<RegisterArgs>();
+  auto* c = app.add_subcommand("register", "Register an aerial photo onto LiDAR depth by building shapes (no georeference needed)");
+  c->add_option("DEPTH", a->depth, "GeoTIFF DSM/nDSM or uncompressed LAS")->required();
+  c->add_option("OPTICAL", a->optical, "the aerial photo")->required();
+  c->add_option("--res", a->res_m, "LAS input: raster cell size, metres (default 0.5)")->check(CLI::Range(0.01, 100.0));
+  c->add_flag("--json", a->json, "the correspondence JSON with the registration's fields");
+  c->add_option("--draw", a->draw, "write regions and matches (photo left, depth right)");
+  c->add_option("--model", a->model, "global transform: auto | similarity | affine | perspective")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "similarity", "affine", "perspective"}));
+  c->add_flag("--principal-directions", a->opt.use_principal_directions,
+              "try rotations from the scenes' principal directions first (thesis 7.2.4; falls back)");
+  c->add_option("--seed", a->opt.seed, "hypothesis order seed")->capture_default_str();
+  c->add_option("--photo-max-side", a->photo_max_side, "segment larger photos downscaled to this side (0: never)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100000));
+  c->callback([a, code] { *code = RunRegister(*a); });
+}
+
+}  // namespace mvkp::cli
