@@ -134,6 +134,12 @@ DepthRaster ReadGdalDepth(const std::string& path, const DepthReadOptions& optio
   if (w > options.max_side || h > options.max_side)
     Bad(path, "raster size " + std::to_string(w) + "x" + std::to_string(h) + " exceeds max_side " +
                   std::to_string(options.max_side));
+  // Three or four 8-bit bands are a colour picture, not heights: a photo
+  // passed as the depth image (the arguments swapped, say).
+  const int bands = GDALGetRasterCount(d);
+  if (bands >= 3 && GDALGetRasterDataType(GDALGetRasterBand(d, 1)) == GDT_Byte)
+    Bad(path, "a " + std::to_string(bands) + "-band 8-bit image looks like a photo, not depth: give a DSM/nDSM "
+              "(one band of heights) or a LAS file");
   DepthRaster out;
   out.z = ReadBandFloat(path, d, 1, w, h);
   ReadGeo(d, out.geo, out.has_geo, out.res_m, out.crs_wkt);

@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# End-to-end tests of the aerial commands (issue 8): `mvkp synth-city` writes
+# scenes with ground truth; `mvkp register` puts a generated photo onto its
+# depth image within 5 px of the truth (mean corner error), answers "no
+# registration found" (exit 0, homography null) for a photo of other ground;
+# `mvkp segment` finds the buildings; the real Montpellier tile's nDSM reads
+# through GDAL; bad input (missing, non-image, LAZ, flat, all-nodata, absurd
+# LAS counts) fails with one clear line and exit 1, never a crash.
+#
+# Run by CTest with MVKP=<mvkp binary> and SAMPLES=<repo>/samples.
+set -u
+
+# shellcheck source=cli_lib.sh
+source "$(dirname "${BASH_SOURCE[0]}")/cli_lib.sh"
+cli_init aerial
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+DATA=${MVKP_DATA_DIR:-$HERE/../shared/data}
+
+expect_ok "synth-city: 6 scenes" "$MVKP" synth-city -o "$T/c" --n 6 --seed 7
+check "synth-city: depth, photo, truth and ids written" test -s "$T/c/city_0000/depth.tif" -a -s "$T/c/city_0000/photo.png" \
+  -a -s "$T/c/city_0000/truth.json" -a -s "$T/c/city_0001/building_id.png"
+expect_ok "synth-city: a scene of other ground" "$MVKP" synth-city -o "$T/n" --n 1 --seed 8 --no-overlap
+
+# Register each generated scene; score against the truth.
+score() { # score SCENE_DIR JSON -> prints "ok <mean corner error>" or "no"
+  "$PY" - "$1" "$2" <<'PYEOF'
+import json, sys
+import numpy as np
+t = json.load(open(sys.argv[1] + "/truth.json"))
+j = json.load(open(sys.argv[2]))
+if not j["ok"]:
+    print("no"); sys.exit()
+He, Ht = np.array(j["homography"]), np.array(t["photo_to_depth"])
+c = np.array(t["corners"], float)
+p = np.c_[c, np.ones(len(c))] @ np.linalg.inv(Ht).T
+p = p[:, :2] / p[:, 2:]
+w, h = t["photo_size"]
+v = (p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)
+q = np.c_[p[v], np.ones(v.sum())] @ He.T
+print("ok %.3f" % np.linalg.norm(q[:, :2] / q[:, 2:] - c[v], axis=1).mean())
+PYEOF
+}
+good=0
+for s in 0 1 2 3 4 5; do
+  d=$T/c/city_000$s
+  run "$MVKP" register "$d/depth.tif" "$d/photo.png" --json --draw "$T/reg$s.png"
+  if why=$(process_problem); then fail "register scene $s: $why"; continue; fi
+  cp "$T/out" "$T/reg$s.json"
+  r=$(score "$d" "$T/reg$s.json")
+  echo "scene $s: $r ($(grep -o '"reason":"[^"]*"' "$T/reg$s.json"))"
+  case $r in ok\ *) awk -v e="${r#ok }" 'BEGIN{exit !(e <= 5)}' && good=$((good + 1)) || fail "register scene $s: WRONG registration reported as success ($r)";; esac
+done
+check "register: generated scenes within 5 px: $good of 6 (at least ${MIN_GOOD:=1}), none wrong" test $good -ge "$MIN_GOOD"
+check "register --draw wrote a drawing" test -s "$T/reg0.png"
+check "register --json: the correspondence JSON with per-stage times" "$PY" -c "
+import json; j = json.load(open('$T/reg0.json'))
+assert j['method'] == 'mvkp-register' and 'matches' in j and 'region_matches' in j
+assert all(k in j['time_ms'] for k in ('read', 'segment_depth', 'segment_photo', 'match', 'propagate', 'total'))"
+
+d=$T/n/city_0000
+expect_ok "register a photo of other ground: exit 0" "$MVKP" register "$d/depth.tif" "$d/photo.png" --json
+check "... with no registration (homography null, a reason)" "$PY" -c "
+import json; j = json.loads(open('$T/out').read())
+assert j['ok'] is False and j['homography'] is None and j['reason'].startswith('no registration found'), j['reason']"
+
+expect_ok "segment depth --json" "$MVKP" segment depth "$T/c/city_0000/depth.tif" --json --draw "$T/segd.png"
+check "segment depth: most of the 30 buildings" "$PY" -c "
+import json; n = len(json.loads(open('$T/out').read())['regions']); assert 24 <= n <= 40, n"
+expect_ok "segment optical" "$MVKP" segment optical "$T/c/city_0000/photo.png" --draw "$T/sego.png"
+
+if [[ -f $DATA/aerial/montpellier/ndsm_50cm.tif ]]; then
+  expect_ok "segment depth on the real nDSM (GeoTIFF via GDAL)" "$MVKP" segment depth "$DATA/aerial/montpellier/ndsm_50cm.tif" --json
+  check "... finds the long building" "$PY" -c "
+import json; r = json.loads(open('$T/out').read())['regions']; assert r and max(x['area_px'] for x in r) > 800, r"
+  expect_ok "register the real tile: an answer, not an error" "$MVKP" register "$DATA/aerial/montpellier/ndsm_50cm.tif" \
+    "$DATA/aerial/montpellier/ortho_rgb_20cm.tif" --json
+  expect_fail "LAZ: decompress first" "decompress" "$MVKP" register "$DATA/aerial/montpellier/lidar.laz" "$SAMPLES/fruits.jpg"
+else
+  echo "skip: no $DATA/aerial/montpellier"
+fi
+
+# Bad input.
+expect_fail "missing depth file" "nope.tif" "$MVKP" register "$T/nope.tif" "$SAMPLES/fruits.jpg"
+expect_fail "missing photo" "nope.png" "$MVKP" register "$T/c/city_0000/depth.tif" "$T/nope.png"
+printf 'not an image at all' >"$T/junk.png"
+expect_fail "non-image photo" "junk.png" "$MVKP" register "$T/c/city_0000/depth.tif" "$T/junk.png"
+expect_fail "a photo as the depth image" "looks like a photo" "$MVKP" register "$SAMPLES/fruits.jpg" "$T/c/city_0000/photo.png"
+"$PY" - "$T" <<'PYEOF'
+import sys, numpy as np, cv2, struct
+t = sys.argv[1]
+cv2.imwrite(t + "/flat.tif", np.full((200, 200), 5.0, np.float32))
+cv2.imwrite(t + "/nan.tif", np.full((200, 200), np.nan, np.float32))
+# A LAS 1.2 header claiming 10^9 points in a 400-byte file.
+h = bytearray(227)
+h[0:4] = b"LASF"; h[24] = 1; h[25] = 2
+struct.pack_into("<H", h, 94, 227); struct.pack_into("<I", h, 96, 227); h[104] = 0
+struct.pack_into("<H", h, 105, 20); struct.pack_into("<I", h, 107, 10**9)
+struct.pack_into("<ddd", h, 131, 0.01, 0.01, 0.01)
+open(t + "/huge.las", "wb").write(bytes(h) + b"\0" * 173)
+PYEOF
+expect_fail "flat depth" "flat" "$MVKP" register "$T/flat.tif" "$T/c/city_0000/photo.png"
+expect_fail "depth with no data anywhere" "no data" "$MVKP" segment depth "$T/nan.tif"
+expect_fail "LAS header claiming 10^9 points" "huge.las" "$MVKP" segment depth "$T/huge.las"
+expect_fail "synth-city --n 0" "--n" "$MVKP" synth-city -o "$T/z" --n 0
+
+cli_finish
