@@ -156,7 +156,7 @@ def main():
             row.update(ok=False, error=err)
         else:
             row.update(ok=j["ok"], reason=j["reason"], model=j["model"], time_ms=j["time_ms"], peak_rss_mb=j["peak_rss_mb"],
-                       regions=j["regions"])
+                       peak_rss_above_start_mb=j.get("peak_rss_above_start_mb"), regions=j["regions"])
             if j["ok"]:
                 e, nvis = corner_error(h_of(j["homography"]), Ht, truth["corners"], psize)
                 row.update(corner_error=e, corners_visible=nvis)
@@ -201,6 +201,9 @@ def main():
         "time_ms_median": {k: med(k) for k in ("read", "segment_depth", "segment_photo", "match", "propagate", "query", "total")},
         "time_ms_max_total": max((t["total"] for t in times), default=None),
         "peak_rss_mb_max": max((r["peak_rss_mb"] for r in rows if "peak_rss_mb" in r), default=None),
+        # what the registration itself needed, over the shared libraries resident at start
+        "peak_rss_above_start_mb_max": max((r["peak_rss_above_start_mb"] for r in rows
+                                            if r.get("peak_rss_above_start_mb") is not None), default=None),
         "depth_segmentation": {"buildings_found": seg[0], "buildings": seg[1], "false_regions": seg[2], "regions": seg[3]},
         "negatives": {"scenes": a.negatives, "false_registrations": sum(r["ok"] for r in neg_rows)},
         "rows": rows,
