@@ -1039,6 +1039,12 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
       const int id = int(std::lround(pid(y, x)));
       city.photo_building_id(y, x) = id < 0 ? -1 : id < s.counted ? id : -2;
     }
+  city.photo_road_mask = cv::Mat1b(pg.size, uchar(0));
+  for (int y = 0; y < pg.size.height; ++y)
+    for (int x = 0; x < pg.size.width; ++x) {
+      const cv::Vec3d w = pg.H * cv::Vec3d(x, y, 1);
+      if (OnRoad(s.lay.Query(w[0] / w[2], w[1] / w[2]), s.lay.sidewalk)) city.photo_road_mask(y, x) = 255;
+    }
   SensorEffects(city.photo, r, o);
 
   // ---- Ground truth.

@@ -69,6 +69,7 @@ struct City {
   std::vector<cv::Vec3b> roof_colours;                       // base roof colour in the photo (BGR)
   cv::Mat1i building_id;           // per depth pixel: building index or -1
   cv::Mat1i photo_building_id;     // per photo pixel: building index, -1 none, -2 a building outside the depth raster
+  cv::Mat1b photo_road_mask;       // per photo pixel: 255 on a road or its sidewalks (for scoring segmentations)
   cv::Mat1b tree_mask;             // per depth pixel: 255 where a tree canopy is
   // Scene parameters (ground truth for analysis):
   double scale = 1;                // depth pixels per photo pixel at the photo centre

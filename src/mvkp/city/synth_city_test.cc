@@ -102,6 +102,18 @@ TEST(City, HasTheRequestedBuildingsWithHeights) {
   EXPECT_EQ(MakeCity(few, 3).footprints.size(), 7u);
 }
 
+// The road mask covers the street grid (a share of the photo, dark asphalt
+// or paving) and never a building.
+TEST(City, RoadMaskCoversStreetsNotBuildings) {
+  const City c = MakeCity(CityOptions(), 3);
+  ASSERT_EQ(c.photo_road_mask.size(), c.photo.size());
+  const double share = double(cv::countNonZero(c.photo_road_mask)) / double(c.photo.total());
+  EXPECT_GT(share, 0.05);
+  EXPECT_LT(share, 0.6);
+  const cv::Mat1b on_building = c.photo_building_id != -1;
+  EXPECT_LT(cv::countNonZero(on_building & c.photo_road_mask), 0.01 * cv::countNonZero(on_building));
+}
+
 TEST(City, VarietyOfShapesAndRoofs) {
   std::set<std::string> shapes;
   std::set<RoofType> roofs;

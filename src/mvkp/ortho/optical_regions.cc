@@ -17,6 +17,7 @@ void OpticalSegmentOptions::Check() const {
   req(canny_low >= 0 && canny_high >= canny_low, "need 0 <= canny_low <= canny_high");
   req(edge_probe >= 1 && edge_probe <= 10, "edge_probe must be in [1, 10]");
   req(seed_cell >= 2, "seed_cell must be >= 2");
+  req(thin_suppress >= 0 && thin_suppress <= 15, "thin_suppress must be in [0, 15]");
   req(ofe_ratio >= 0, "ofe_ratio must be >= 0");
   req(range_tolerance >= 0 && range_tolerance_strict >= 0 && range_soft_max >= 0, "range tolerances must be >= 0");
   req(range_len >= 1, "range_len must be >= 1");
@@ -26,7 +27,7 @@ void OpticalSegmentOptions::Check() const {
   req(merge_gap >= 0 && merge_gap <= 5, "merge_gap must be in [0, 5]");
   req(barrier_dilate >= 0 && barrier_dilate <= 3, "barrier_dilate must be in [0, 3]");
   req(contour_dilate >= 0 && contour_dilate <= 5, "contour_dilate must be in [0, 5]");
-  req(max_elongation >= 1 && min_solidity >= 0 && min_solidity <= 1, "bad elongation / solidity limits");
+  req(max_elongation >= 1 && max_elongation_unshaded >= 1 && min_solidity >= 0 && min_solidity <= 1, "bad elongation / solidity limits");
   req(!fbm.Valid() || fbm.window <= 31, "fbm.window must be <= 31");
 }
 
@@ -58,6 +59,11 @@ Maps BuildMaps(const cv::Mat3b& bgr, const OpticalSegmentOptions& o) {
   cv::cvtColor(bgr, m.raw_gray, cv::COLOR_BGR2GRAY);
   if (o.pre_blur_sigma > 0) cv::GaussianBlur(bgr, m.img, cv::Size(), o.pre_blur_sigma);
   else m.img = bgr.clone();
+  if (o.thin_suppress >= 2) {
+    const cv::Mat k = cv::getStructuringElement(cv::MORPH_RECT, {o.thin_suppress, o.thin_suppress});
+    cv::morphologyEx(m.img, m.img, cv::MORPH_OPEN, k);
+    cv::morphologyEx(m.img, m.img, cv::MORPH_CLOSE, k);
+  }
   cv::cvtColor(m.img, m.gray, cv::COLOR_BGR2GRAY);
   const int rows = bgr.rows, cols = bgr.cols;
 
@@ -70,7 +76,9 @@ Maps BuildMaps(const cv::Mat3b& bgr, const OpticalSegmentOptions& o) {
     uint8_t *v = m.veg[y], *s = m.shadow[y];
     for (int x = 0; x < cols; ++x) {
       const int B = p[x][0], G = p[x][1], R = p[x][2];
-      v[x] = (G >= R + o.veg_green_margin && G + 2 >= B && 2 * G - R - B >= o.veg_exg) ? 255 : 0;
+      const int exg = 2 * G - R - B;
+      v[x] = (G >= R + o.veg_green_margin && G + 2 >= B && exg >= o.veg_exg &&
+              exg >= o.veg_exg_rel * (B + G + R + 1)) ? 255 : 0;
       s[x] = (g[x] < o.shadow_intensity && std::max({B, G, R}) < o.shadow_channel) ? 255 : 0;
     }
   }
@@ -191,6 +199,42 @@ void Normalise(std::vector<cv::Point>& c) {
     return a.y != b.y ? a.y < b.y : a.x < b.x;
   });
   std::rotate(c.begin(), first, c.end());
+}
+
+// Fraction of the outline's length (polygonised with tolerance eps) whose
+// direction lies within 10 degrees (mod 90) of the length-weighted dominant
+// direction: ~1 for rectilinear buildings, low for natural blobs.
+double Rectilinearity(const std::vector<cv::Point>& c, double eps) {
+  std::vector<cv::Point> poly;
+  cv::approxPolyDP(c, poly, eps, true);
+  if (poly.size() < 3) return 0;
+  constexpr int kBins = 90;
+  double hist[kBins] = {0}, total = 0;
+  std::vector<std::pair<double, double>> seg;  // (angle mod 90 in degrees, length)
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const cv::Point d = poly[(i + 1) % poly.size()] - poly[i];
+    const double len = std::hypot(d.x, d.y);
+    if (len <= 0) continue;
+    double a = std::atan2(double(d.y), double(d.x)) * 180 / CV_PI;
+    a = std::fmod(a + 360.0, 90.0);
+    seg.emplace_back(a, len);
+    total += len;
+    hist[std::min(kBins - 1, int(a))] += len;
+  }
+  if (total <= 0) return 0;
+  double best = -1, best_a = 0;
+  for (int b = 0; b < kBins; ++b) {
+    double s = 0;
+    for (int k = -10; k <= 10; ++k) s += hist[(b + k + kBins) % kBins];
+    if (s > best) best = s, best_a = b + 0.5;
+  }
+  double in = 0;
+  for (auto& [a, len] : seg) {
+    double d = std::abs(a - best_a);
+    d = std::min(d, 90 - d);
+    if (d <= 10) in += len;
+  }
+  return in / total;
 }
 
 }  // namespace
@@ -391,6 +435,26 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
       const int k = 2 * opt.contour_dilate + 1;
       cv::dilate(mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, {k, k}));
     }
+    // Cast-shadow evidence: fraction of the outer ring darker than a fraction of its median.
+    double dark_ring = 1;
+    if (opt.min_shadow_ring > 0 || (opt.regulate && opt.max_elongation_unshaded < opt.max_elongation)) {
+      cv::Mat1b ring;
+      cv::dilate(mask, ring, cv::getStructuringElement(cv::MORPH_ELLIPSE, {11, 11}));
+      ring &= ~mask;
+      std::vector<uint8_t> vals;
+      for (int y = 0; y < roi.height; ++y)
+        for (int x = 0; x < roi.width; ++x)
+          if (ring(y, x)) vals.push_back(m.gray(roi.y + y, roi.x + x));
+      dark_ring = 0;
+      if (!vals.empty()) {
+        std::nth_element(vals.begin(), vals.begin() + vals.size() / 2, vals.end());
+        const double thr = opt.shadow_ring_ratio * vals[vals.size() / 2];
+        size_t dark = 0;
+        for (uint8_t v : vals) dark += v < thr;
+        dark_ring = double(dark) / vals.size();
+      }
+      if (dark_ring < opt.min_shadow_ring) continue;
+    }
     std::vector<std::vector<cv::Point>> cs;
     cv::findContours(mask, cs, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, roi.tl());
     if (cs.empty()) continue;
@@ -408,7 +472,10 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
       cv::convexHull(ct, hull);
       r.lda_score = lda.Score(ContourPnr(ct));
       if (hi / lo > opt.max_elongation) continue;
+      if (hi / lo > opt.max_elongation_unshaded && dark_ring < opt.shadow_ring_evidence) continue;
       if (r.area < opt.min_solidity * cv::contourArea(hull)) continue;
+      if (opt.min_rectilinear > 0 && Rectilinearity(ct, std::max(1.5, 0.02 * std::sqrt(r.area))) < opt.min_rectilinear)
+        continue;
       // An outline cut by the photo border says less about the building's
       // shape: a laxer margin for those.
       int on_border = 0;

@@ -3,7 +3,9 @@
 //
 // Pipeline (each step behind an option):
 //  1. Assistant information maps (AIMs) on the lightly smoothed photo:
-//     vegetation (green dominant), shadow (I < T1 and max(B,G,R) < T2), and a
+//     vegetation (green dominant, in absolute terms AND relative to the
+//     brightness: a few % colour cast must not turn a white roof into
+//     "vegetation"), shadow (I < T1 and max(B,G,R) < T2), and a
 //     Canny edge map whose pixels are split into TRUE edges and IN-REGION
 //     edges: an edge pixel is in-region when the nearest non-edge pixels on
 //     both sides across it (horizontal or vertical pair, chosen by the
@@ -32,7 +34,13 @@
 //     of a pitched roof).
 //  7. Region regulation: LDA on the peak-neighbourhood ratios of the x/y
 //     contour histograms (ortho_models.h; laxer for outlines cut by the photo
-//     border), plus simple shape sanity (area, elongation, solidity).
+//     border), plus simple shape sanity (area, elongation, solidity). Not in
+//     the thesis: a region more elongated than max_elongation_unshaded must
+//     show cast-shadow evidence in its outer ring (raised objects cast
+//     shadows, road and kerb pieces do not); optional and off by default:
+//     thin-structure suppression, a rectilinearity test, a hard shadow-ring
+//     requirement (each measured and found to cost more roofs than it saves
+//     false regions on generated cities, see bench/ortho_eval.cc).
 //
 // Contours are outer boundaries in photo pixel coordinates (pixel centres at
 // integers), COUNTER-CLOCKWISE AS SEEN ON SCREEN (x right, y down): the
@@ -61,9 +69,14 @@ struct PhotoRegion {
 struct OpticalSegmentOptions {
   // --- preprocessing / AIMs
   double pre_blur_sigma = 1.0;       // Gaussian smoothing before everything except the fractal error; 0: none
+  int thin_suppress = 0;             // (not in the thesis) grey opening + closing with this square before the
+                                     // maps: erases structures thinner than it (road markings, seams, tile
+                                     // rows, roof equipment) so they neither cut regions nor make edges; 0: off
   bool use_vegetation = true;        // vegetation map blocks growth
   int veg_green_margin = 8;          // vegetation: G >= R + margin, G >= B - 2 (shaded foliage is bluish) ...
   int veg_exg = 14;                  // ... and excess green 2G - R - B >= veg_exg
+  double veg_exg_rel = 0.1;          // ... and (2G - R - B) / (B + G + R) >= this (not in the thesis: a colour
+                                     // cast of a few % makes bright grey roofs pass the absolute tests); 0: off
   bool use_shadow = true;            // shadow map blocks growth (thesis: relaxable in dense cities)
   int shadow_intensity = 60;         // T_shadow1: intensity below
   int shadow_channel = 80;           // T_shadow2: max(B, G, R) below
@@ -107,6 +120,16 @@ struct OpticalSegmentOptions {
   double lda_margin = -0.25;         // keep if score > lda_margin (conservative: only clearly irregular outlines go)
   double lda_border_relax = 1.0;     // margin lowered by this for outlines cut by the photo border (>= 5 % of points)
   double max_elongation = 6;         // min-area-rect long/short side above: road, not roof
+  double min_rectilinear = 0.0;      // (not in the thesis) length fraction of the polygonised outline (±10°)
+                                     // along its two dominant perpendicular directions below: natural blob; 0: off
+  double min_shadow_ring = 0.0;      // (not in the thesis) raised objects cast shadows: keep only regions whose
+                                     // 5-px outer ring has at least this fraction of "dark" pixels (below
+                                     // shadow_ring_ratio x the ring's median); 0: off (it costs many roofs)
+  double shadow_ring_ratio = 0.7;
+  double max_elongation_unshaded = 3;  // (not in the thesis) elongation limit for regions whose ring has fewer
+                                     // than shadow_ring_evidence dark pixels: a long strip without a cast
+                                     // shadow is a road / kerb piece; long buildings keep max_elongation
+  double shadow_ring_evidence = 0.2;
   double min_solidity = 0.55;        // area / convex hull area below: irregular clutter
   int contour_dilate = 1;            // grow final masks by this many px (regions stop 1 px inside edges)
   void Check() const;                // throws Error(kInvalidArgument)
