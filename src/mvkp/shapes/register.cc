@@ -650,14 +650,14 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       fits.clear();
       for (Model m : models) fits.push_back(refine(m, start, pairs));
       // kAuto: the simplest model unless a more complex one lowers the RMS by
-      // >= 10 % and 0.1 px; affine needs >= 4 region pairs, perspective >= 8
+      // >= 10 % and 0.1 px; affine needs >= 4 region pairs, perspective >= 6
       chosen = -1;
       int most_accurate = -1;
       for (int i = 0; i < int(fits.size()); ++i) {
         if (!fits[i].ok) continue;
         if (most_accurate < 0 || fits[i].rms < fits[most_accurate].rms) most_accurate = i;
         if (opt.model == Model::kAuto && ((fits[i].m == Model::kAffine && int(pairs.size()) < 4) ||
-                                          (fits[i].m == Model::kPerspective && int(pairs.size()) < 8)))
+                                          (fits[i].m == Model::kPerspective && int(pairs.size()) < 6)))
           continue;
         if (chosen < 0 || (fits[i].rms < 0.9 * fits[chosen].rms && fits[i].rms < fits[chosen].rms - 0.1)) chosen = i;
       }
