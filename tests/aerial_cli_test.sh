@@ -79,6 +79,21 @@ else
   echo "skip: no $DATA/aerial/montpellier"
 fi
 
+# The photo segmentation's models, fitted for a dataset and used.
+"$PY" -c "
+import cv2, numpy as np
+p = cv2.imread('$T/c/city_0002/photo.png')
+cv2.imwrite('$T/mask.png', np.full(p.shape[:2], 255, np.uint8))"
+expect_ok "ortho-models fit-fbm PHOTO=MASK" "$MVKP" ortho-models fit-fbm "$T/c/city_0002/photo.png=$T/mask.png" -o "$T/fbm.json"
+check "... a valid model (0 < H < 1, k > 0)" "$PY" -c "
+import json; j = json.loads(open('$T/out').read()); assert 0 < j['H'] < 1 and j['k'] > 0, j"
+expect_ok "ortho-models train-lda" "$MVKP" ortho-models train-lda -o "$T/lda.json"
+expect_ok "register with --fbm and --lda" "$MVKP" register "$T/c/city_0002/depth.tif" "$T/c/city_0002/photo.png" \
+  --fbm "$T/fbm.json" --lda "$T/lda.json" --json
+expect_fail "fit-fbm without a mask" "PHOTO=MASK" "$MVKP" ortho-models fit-fbm "$T/c/city_0002/photo.png" -o "$T/x.json"
+expect_fail "an LDA file given as the fBm model" "fbm" "$MVKP" register "$T/c/city_0002/depth.tif" \
+  "$T/c/city_0002/photo.png" --fbm "$T/lda.json"
+
 # Bad input.
 expect_fail "missing depth file" "nope.tif" "$MVKP" register "$T/nope.tif" "$SAMPLES/fruits.jpg"
 expect_fail "missing photo" "nope.png" "$MVKP" register "$T/c/city_0000/depth.tif" "$T/nope.png"

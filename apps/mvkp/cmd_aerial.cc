@@ -28,6 +28,7 @@
 #include "mvkp/core/timer.h"
 #include "mvkp/geo/raster.h"
 #include "mvkp/ortho/optical_regions.h"
+#include "mvkp/ortho/ortho_models.h"
 #include "mvkp/shapes/register.h"
 
 namespace mvkp::cli {
@@ -82,8 +83,14 @@ cv::Mat DepthColour(const cv::Mat1f& z) {
 
 // ----------------------------------------------------------------- segment
 
+// --fbm / --lda: the photo segmentation's models (mvkp ortho-models).
+void LoadOrthoModels(const std::string& fbm, const std::string& lda, OpticalSegmentOptions& o) {
+  if (!fbm.empty()) o.fbm = LoadFbmModel(fbm);
+  if (!lda.empty()) o.lda = LoadRegionLda(lda);
+}
+
 struct SegmentArgs {
-  std::string kind, image, draw;
+  std::string kind, image, draw, fbm, lda;
   bool json = false;
   double res_m = 0;
 };
@@ -109,7 +116,9 @@ int RunSegment(const SegmentArgs& a) {
       const geo::OpticalImage img = geo::ReadOpticalImage(a.image);
       const double read_ms = t.ElapsedMs();
       Timer ts;
-      const std::vector<PhotoRegion> r = SegmentOptical(img.bgr);
+      OpticalSegmentOptions oo;
+      LoadOrthoModels(a.fbm, a.lda, oo);
+      const std::vector<PhotoRegion> r = SegmentOptical(img.bgr, oo);
       out["time_ms"] = {{"read", read_ms}, {"segment", ts.ElapsedMs()}};
       out["size"] = {img.bgr.cols, img.bgr.rows};
       for (const auto& x : r)
@@ -130,7 +139,7 @@ int RunSegment(const SegmentArgs& a) {
 // ---------------------------------------------------------------- register
 
 struct RegisterArgs {
-  std::string depth, optical, draw, model = "auto";
+  std::string depth, optical, draw, model = "auto", fbm, lda;
   bool json = false;
   double res_m = 0;
   int photo_max_side = 1200;
@@ -199,7 +208,9 @@ int RunRegister(RegisterArgs& a) {
       f = double(a.photo_max_side) / std::max(work.cols, work.rows);
       cv::resize(img.bgr, work, cv::Size(), f, f, cv::INTER_AREA);
     }
-    const std::vector<PhotoRegion> pregions = SegmentOptical(work);
+    OpticalSegmentOptions oo;
+    LoadOrthoModels(a.fbm, a.lda, oo);
+    const std::vector<PhotoRegion> pregions = SegmentOptical(work, oo);
     work.release();
     const double photo_ms = tp.ElapsedMs();
     std::vector<std::vector<cv::Point>> dc;
@@ -274,6 +285,8 @@ void RegisterSegment(CLI::App& app, int* code) {
   c->add_option("--draw", a->draw, "write the regions over the image");
   c->add_flag("--json", a->json, "regions as JSON (contours in pixels)");
   c->add_option("--res", a->res_m, "LAS input: raster cell size, metres (default 0.5)")->check(CLI::Range(0.01, 100.0));
+  c->add_option("--fbm", a->fbm, "optical: fBm model file (mvkp ortho-models fit-fbm; default: fitted on the photo)");
+  c->add_option("--lda", a->lda, "optical: region LDA file (mvkp ortho-models train-lda; default: built in)");
   c->callback([a, code] { *code = RunSegment(*a); });
 }
 
@@ -291,10 +304,71 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_flag("--principal-directions", a->opt.use_principal_directions,
               "try rotations from the scenes' principal directions first (thesis 7.2.4; falls back)");
   c->add_option("--seed", a->opt.seed, "hypothesis order seed")->capture_default_str();
+  c->add_option("--fbm", a->fbm, "fBm model file (mvkp ortho-models fit-fbm; default: fitted on the photo)");
+  c->add_option("--lda", a->lda, "region LDA file (mvkp ortho-models train-lda; default: built in)");
   c->add_option("--photo-max-side", a->photo_max_side, "segment larger photos downscaled to this side (0: never)")
       ->capture_default_str()
       ->check(CLI::Range(0, 100000));
   c->callback([a, code] { *code = RunRegister(*a); });
+}
+
+void RegisterOrthoModels(CLI::App& app, int* code) {
+  auto* c = app.add_subcommand("ortho-models", "Fit the photo segmentation's models (fBm, region LDA) for a dataset");
+  c->require_subcommand(1);
+  struct FbmArgs {
+    std::vector<std::string> pairs;
+    std::string out;
+    int window = 7;
+  };
+  auto f = std::make_shared<FbmArgs>();
+  auto* fc = c->add_subcommand("fit-fbm", "Least-squares fBm fit on the non-building areas of photos (thesis 7.2.2)");
+  fc->add_option("PHOTO=MASK", f->pairs, "photo and mask (non-zero: not a building), same size")->required();
+  fc->add_option("-o", f->out, "model file to write (JSON)")->required();
+  fc->add_option("--window", f->window, "fractal-error window side (odd)")->capture_default_str()->check(CLI::Range(3, 31));
+  fc->callback([f, code] {
+    try {
+      std::vector<cv::Mat> images, masks;
+      for (const auto& p : f->pairs) {
+        const auto eq = p.find('=');
+        Require(eq != std::string::npos && eq > 0 && eq + 1 < p.size(), ErrorCode::kInvalidArgument,
+                "'" + p + "': expected PHOTO=MASK");
+        images.push_back(geo::ReadOpticalImage(p.substr(0, eq)).bgr);
+        masks.push_back(LoadImageGray(p.substr(eq + 1)));
+        Require(masks.back().size() == images.back().size(), ErrorCode::kInvalidArgument,
+                p.substr(eq + 1) + ": mask size differs from its photo's");
+      }
+      const FbmModel m = FitFbm(images, masks, f->window);
+      SaveFbmModel(f->out, m);
+      std::cout << Json{{"model", "fbm"}, {"file", f->out}, {"k", m.k}, {"H", m.H}, {"ofe", m.ofe}, {"window", m.window}}.dump()
+                << std::endl;
+      *code = 0;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "mvkp ortho-models fit-fbm: %s\n", e.what());
+      *code = 1;
+    }
+  });
+  struct LdaArgs {
+    std::string out;
+    unsigned seed = 7;
+  };
+  auto l = std::make_shared<LdaArgs>();
+  auto* lc = c->add_subcommand("train-lda", "Train the region-regulation LDA on generated building outlines vs blobs");
+  lc->add_option("-o", l->out, "model file to write (JSON)")->required();
+  lc->add_option("--seed", l->seed, "seed of the generated training outlines")->capture_default_str();
+  lc->callback([l, code] {
+    try {
+      std::vector<cv::Vec2d> pnr;
+      std::vector<int> labels;
+      DefaultRegionLdaTrainingSet(&pnr, &labels, l->seed);
+      const RegionLda m = TrainRegionLda(pnr, labels);
+      SaveRegionLda(l->out, m);
+      std::cout << Json{{"model", "lda"}, {"file", l->out}, {"samples", pnr.size()}, {"b", m.b}}.dump() << std::endl;
+      *code = 0;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "mvkp ortho-models train-lda: %s\n", e.what());
+      *code = 1;
+    }
+  });
 }
 
 }  // namespace mvkp::cli

@@ -21,6 +21,7 @@ void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterSynthCity(CLI::App& app, int* exit_code);
 void RegisterSegment(CLI::App& app, int* exit_code);
 void RegisterRegister(CLI::App& app, int* exit_code);
+void RegisterOrthoModels(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
 void RegisterVocab(CLI::App& app, int* exit_code);
 void RegisterServe(CLI::App& app, int* exit_code);

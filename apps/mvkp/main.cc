@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterSynthCity(app, &code);
   mvkp::cli::RegisterSegment(app, &code);
   mvkp::cli::RegisterRegister(app, &code);
+  mvkp::cli::RegisterOrthoModels(app, &code);
   // CLI11 reports "A subcommand is required" for a misspelt one; name it instead.
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;
