@@ -16,6 +16,9 @@ pkgs=(
   nodejs                   # web client checks (tests/serve_api_test.py)
   chromium                 # web client in a real browser (tests/e2e, CTest web_e2e)
   python3 python3-numpy python3-opencv  # evaluation scripts (eval_pairs.py, contract-check)
+  pybind11-dev python3-dev python3-pytest  # Python module `mvkp` (python/) and its tests
+  doxygen                  # API reference (make docs)
+  dpkg-dev fakeroot        # make deb (CPack DEB generator, dpkg-shlibdeps)
 )
 missing=()
 for p in "${pkgs[@]}"; do
