@@ -125,10 +125,11 @@ def main():
     ap.add_argument("--mvkp", default="build/mvkp")
     ap.add_argument("--out", default="out/aerial")
     ap.add_argument("--n", type=int, default=50)
-    ap.add_argument("--negatives", type=int, default=10)
+    ap.add_argument("--negatives", type=int, default=40)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--real", default=os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "aerial", "montpellier"))
     ap.add_argument("--no-baseline", action="store_true")
+    ap.add_argument("--register-args", default="", help="extra arguments for every `mvkp register` (one string)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     scenes = os.path.join(a.out, "scenes")
@@ -140,6 +141,7 @@ def main():
         subprocess.run([a.mvkp, "synth-city", "-o", negs, "--n", str(a.negatives), "--seed", str(a.seed + 1000),
                         "--no-overlap"], check=True, stdout=subprocess.DEVNULL)
 
+    xargs = a.register_args.split()
     rows = []
     base = {"sift": [], "orb": []}
     seg = [0, 0, 0, 0]
@@ -149,7 +151,7 @@ def main():
         Ht = h_of(truth["photo_to_depth"])
         psize = truth["photo_size"]
         j, err = run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json",
-                           "--draw", os.path.join(d, "register.png")])
+                           "--draw", os.path.join(d, "register.png")] + xargs)
         row = {"scene": i, "scale": truth["scale"], "rotation_deg": truth["rotation_deg"],
                "depth_overlap": truth["depth_overlap"]}
         if j is None:
@@ -181,7 +183,7 @@ def main():
     neg_rows = []
     for i in range(a.negatives):
         d = os.path.join(negs, "city_%04d" % i)
-        j, err = run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json"])
+        j, err = run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json"] + xargs)
         neg_rows.append({"scene": i, "ok": bool(j and j["ok"]), "error": err, "reason": j["reason"] if j else None})
 
     succ = [r for r in rows if r["success"]]
@@ -205,7 +207,7 @@ def main():
         "peak_rss_above_start_mb_max": max((r["peak_rss_above_start_mb"] for r in rows
                                             if r.get("peak_rss_above_start_mb") is not None), default=None),
         "depth_segmentation": {"buildings_found": seg[0], "buildings": seg[1], "false_regions": seg[2], "regions": seg[3]},
-        "negatives": {"scenes": a.negatives, "false_registrations": sum(r["ok"] for r in neg_rows)},
+        "negatives": {"scenes": a.negatives, "false_registrations": sum(r["ok"] for r in neg_rows), "rows": neg_rows},
         "rows": rows,
     }
     if not a.no_baseline:
@@ -217,7 +219,7 @@ def main():
     real = {}
     ortho, ndsm = os.path.join(a.real, "ortho_rgb_20cm.tif"), os.path.join(a.real, "ndsm_50cm.tif")
     if os.path.exists(ortho) and os.path.exists(ndsm):
-        j, err = run_json([a.mvkp, "register", ndsm, ortho, "--json", "--draw", os.path.join(a.out, "montpellier.png")])
+        j, err = run_json([a.mvkp, "register", ndsm, ortho, "--json", "--draw", os.path.join(a.out, "montpellier.png")] + xargs)
         # photo px (0.2 m, UL 770549.8 / 6277600.2) -> depth px (0.5 m, UL 770549.75 / 6277600.25), pixel centres
         # at integer coordinates: X = x0p + (u + 0.5) * 0.2, u_d = (X - x0d) / 0.5 - 0.5.
         Ht = np.array([[0.4, 0, (770549.8 - 770549.75 + 0.1) / 0.5 - 0.5],

@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -144,6 +145,7 @@ struct RegisterArgs {
   double res_m = 0;
   int photo_max_side = 1200;
   RegistrationOptions opt;
+  EdgeEvidenceOptions edge;
 };
 
 // Photo (left, scaled to the depth image's height) and depth (right), their
@@ -211,6 +213,8 @@ int RunRegister(RegisterArgs& a) {
     OpticalSegmentOptions oo;
     LoadOrthoModels(a.fbm, a.lda, oo);
     const std::vector<PhotoRegion> pregions = SegmentOptical(work, oo);
+    cv::Mat grey;
+    if (a.edge.min_contrast > 0) cv::cvtColor(work, grey, cv::COLOR_BGR2GRAY);
     work.release();
     const double photo_ms = tp.ElapsedMs();
     std::vector<std::vector<cv::Point>> dc;
@@ -222,7 +226,10 @@ int RunRegister(RegisterArgs& a) {
       for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / f - 0.5), float((p.y + 0.5) / f - 0.5));
       pcont.push_back(std::move(c));
     }
-    const Registration reg = RegisterContours(pcont, dcont, a.opt);
+    std::optional<EdgeEvidence> evidence;
+    if (!grey.empty()) evidence.emplace(grey, f, dcont, a.edge);
+    grey.release();
+    const Registration reg = RegisterContours(pcont, dcont, a.opt, evidence ? &*evidence : nullptr);
     const double total_ms = total.ElapsedMs();
 
     Json out;
@@ -248,6 +255,8 @@ int RunRegister(RegisterArgs& a) {
       rm.push_back({{"photo", m.a}, {"depth", m.b}, {"cost", m.cost}, {"cost_ratio", m.cost_ratio}});
     out["region_matches"] = rm;
     out["rms_px"] = reg.rms_px;
+    if (reg.edge.enough) out["edge"] = {{"points", reg.edge.points}, {"contrast", reg.edge.contrast}};
+    else out["edge"] = nullptr;
     out["hypotheses"] = reg.hypotheses;
     out["depth"] = {{"size", {d.z.cols, d.z.rows}}, {"res_m", d.res_m}};
     out["photo"] = {{"size", {img.bgr.cols, img.bgr.rows}}};
@@ -304,6 +313,17 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_flag("--principal-directions", a->opt.use_principal_directions,
               "try rotations from the scenes' principal directions first (thesis 7.2.4; falls back)");
   c->add_option("--seed", a->opt.seed, "hypothesis order seed")->capture_default_str();
+  c->add_option("--min-regions", a->opt.min_regions, "consistent region pairs needed to accept")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 1000));
+  c->add_option("--max-rms", a->opt.max_rms_px, "final RMS contour distance (depth px) needed to accept")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 100.0));
+  c->add_option("--min-edge-contrast", a->edge.min_contrast,
+                "image check: depth outlines must lie on photo edges this much more than beside them (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
+  c->add_flag("!--no-edge-refine", a->opt.edge_refine, "keep the shape-fitted transform (no snapping onto photo edges)");
   c->add_option("--fbm", a->fbm, "fBm model file (mvkp ortho-models fit-fbm; default: fitted on the photo)");
   c->add_option("--lda", a->lda, "region LDA file (mvkp ortho-models train-lda; default: built in)");
   c->add_option("--photo-max-side", a->photo_max_side, "segment larger photos downscaled to this side (0: never)")

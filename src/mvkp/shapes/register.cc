@@ -26,9 +26,12 @@ void RegistrationOptions::Check() const {
   need(inlier_px > 0 && inlier_fraction > 0 && inlier_fraction <= 1,
        "RegistrationOptions: inlier_px > 0, inlier_fraction in (0, 1]");
   need(max_area_ratio >= 1, "RegistrationOptions.max_area_ratio must be >= 1");
-  need(min_regions >= 2, "RegistrationOptions.min_regions must be >= 2");
+  need(min_regions >= 2 && min_regions_with_evidence >= 2,
+       "RegistrationOptions: min_regions and min_regions_with_evidence must be >= 2");
   need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "RegistrationOptions.min_inlier_ratio in [0, 1]");
   need(max_rms_px > 0, "RegistrationOptions.max_rms_px must be > 0");
+  need(perspective_min_pairs >= 4, "RegistrationOptions.perspective_min_pairs must be >= 4");
+  need(edge_rms_factor >= 1 && edge_rms_factor <= 10, "RegistrationOptions.edge_rms_factor in [1, 10]");
   need(principal_tolerance_deg > 0 && principal_tolerance_deg < 45,
        "RegistrationOptions.principal_tolerance_deg in (0, 45)");
 }
@@ -417,7 +420,7 @@ std::optional<PrincipalDirections> DetectPrincipalDirections(const std::vector<C
 // ---- registration ------------------------------------------------------------
 
 Registration RegisterContours(const std::vector<Contour>& photo_regions, const std::vector<Contour>& depth_regions,
-                              const RegistrationOptions& opt) {
+                              const RegistrationOptions& opt, const EdgeEvidence* evidence) {
   opt.Check();
   Registration res;
   Timer timer;
@@ -429,7 +432,9 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     res.match_ms = timer.ElapsedMs();
     return res;
   }
-  if (int(std::min(photo.size(), depth.size())) < opt.min_regions) {
+  // image evidence is independent support: one region pair fewer will do
+  const int min_regions = evidence ? std::min(opt.min_regions, opt.min_regions_with_evidence) : opt.min_regions;
+  if (int(std::min(photo.size(), depth.size())) < min_regions) {
     res.reason = "no registration found: fewer regions than min_regions (" + std::to_string(photo.size()) +
                  " photo, " + std::to_string(depth.size()) + " depth)";
     res.match_ms = timer.ElapsedMs();
@@ -521,7 +526,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   auto acceptable = [&](const Evaluation& e, const cv::Matx33d& T, double* ratio) {
     const auto [np, nd] = verifier.Overlap(T);
     *ratio = double(e.count()) / double(std::max(1, std::min(np, nd)));
-    return e.count() >= opt.min_regions && *ratio >= opt.min_inlier_ratio;
+    return e.count() >= min_regions && *ratio >= opt.min_inlier_ratio;
   };
   // The few best distinct consistent sets (largest first); a set that shares
   // half of its pairs with a kept one is the same solution — the better stays.
@@ -657,9 +662,14 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
         if (!fits[i].ok) continue;
         if (most_accurate < 0 || fits[i].rms < fits[most_accurate].rms) most_accurate = i;
         if (opt.model == Model::kAuto && ((fits[i].m == Model::kAffine && int(pairs.size()) < 4) ||
-                                          (fits[i].m == Model::kPerspective && int(pairs.size()) < 6)))
+                                          (fits[i].m == Model::kPerspective && int(pairs.size()) < opt.perspective_min_pairs)))
           continue;
-        if (chosen < 0 || (fits[i].rms < 0.9 * fits[chosen].rms && fits[i].rms < fits[chosen].rms - 0.1)) chosen = i;
+        // the perspective model (the camera's) needs only to fit no worse;
+        // the affine one must clearly beat the similarity
+        const bool persp = fits[i].m == Model::kPerspective;
+        if (chosen < 0 || (persp && fits[i].rms <= fits[chosen].rms) ||
+            (fits[i].rms < 0.9 * fits[chosen].rms && fits[i].rms < fits[chosen].rms - 0.1))
+          chosen = i;
       }
       if (chosen < 0) break;
       // propagate with the most accurate fit: the set may grow (and allow a
@@ -670,14 +680,45 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       start = fits[most_accurate].T;
     }
     if (chosen < 0) return "refinement of the consistent set failed";
-    const Fitted f = fits[chosen];
+    Fitted f = fits[chosen];
     double ratio;
     // less evidence (few region pairs) -> demand a tighter fit
-    const double evidence = std::clamp((double(pairs.size()) - 1.0) / 5.0, 0.5, 1.0);
-    const double max_rms = evidence * opt.max_rms_px * tol / opt.inlier_px;
+    const double support = std::clamp((double(pairs.size()) - 1.0) / 5.0, 0.5, 1.0);
+    double max_rms = support * opt.max_rms_px * tol / opt.inlier_px;
+    EdgeScore es;
+    if (evidence) {
+      es = evidence->Evaluate(f.T);
+      // a right but imprecise fit (few region pairs) puts the outlines beside
+      // the edges: judge it after a small similarity correction (which cannot
+      // put a wrong set of outlines on edges)
+      if (es.enough && !evidence->Accepts(es) && opt.edge_refine) {
+        const cv::Matx33d T1 = evidence->Refine(f.T, false, /*sharp=*/false);
+        const EdgeScore es1 = evidence->Evaluate(T1);
+        if (evidence->Accepts(es1)) {
+          es = es1, f.T = T1;
+          verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+        }
+      }
+    }
+    res.edge = es;
+    if (es.enough) max_rms *= opt.edge_rms_factor;
     if (!acceptable(Evaluation{pairs, {}, 0}, f.T, &ratio) || f.rms > max_rms)
       return cv::format("best consistent set fails the checks (%d region pairs, ratio %.2f, RMS %.2f px > %.2f)",
                         int(pairs.size()), ratio, f.rms, max_rms);
+    if (!es.enough && int(pairs.size()) < opt.min_regions)
+      return cv::format("best consistent set has %d region pairs (need %d without image evidence)", int(pairs.size()),
+                        opt.min_regions);
+    if (es.enough && !evidence->Accepts(es))
+      return cv::format("best consistent set fails the image check (%d region pairs, outline edge contrast %.2f < %.2f)",
+                        int(pairs.size()), es.contrast, evidence->options().min_contrast);
+    if (es.enough && opt.edge_refine) {
+      const bool persp = opt.model == Model::kPerspective || opt.model == Model::kAuto;
+      const cv::Matx33d T2 = evidence->Refine(f.T, persp);
+      if (persp && f.m != Model::kPerspective) f.m = Model::kPerspective;
+      f.T = T2;
+      verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+      res.edge = evidence->Evaluate(f.T);
+    }
     double scale, rot;
     if (!LocalScaleRotation(f.T, photo[pairs[0].first].centroid, &scale, &rot))
       return "refined transform is degenerate or reflecting";
@@ -700,6 +741,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     }
     res.reason = cv::format("%s, %d region pairs (ratio %.2f), RMS %.2f px, %d hypotheses", res.model.c_str(),
                             int(pairs.size()), ratio, f.rms, res.hypotheses);
+    if (res.edge.enough) res.reason += cv::format(", outline edge contrast %.2f", res.edge.contrast);
     return {};
   };
 
@@ -721,7 +763,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   }
   res.reason = "no registration found: " +
                (why.empty() ? cv::format("best hypothesis explains %d region pair(s) (need %d), ratio %.2f (need %.2f)",
-                                         best_count, opt.min_regions, best_ratio, opt.min_inlier_ratio)
+                                         best_count, min_regions, best_ratio, opt.min_inlier_ratio)
                             : why);
   res.propagate_ms = timer.ElapsedMs();
   return res;

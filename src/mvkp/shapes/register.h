@@ -24,8 +24,9 @@
 //  6. Each, largest first: least squares (ICP on exact closest contour
 //     points) of the similarity, affine and perspective models, propagating
 //     again with the most accurate one while the set grows; kAuto keeps the
-//     simplest model whose RMS is not clearly beaten by a more complex one
-//     (affine needs >= 4 region pairs, perspective >= 8). Accepted when the
+//     perspective model when it fits no worse than the similarity (from
+//     perspective_min_pairs region pairs), else the similarity unless the
+//     affine model clearly beats it (>= 4 pairs). Accepted when the
 //     RMS is <= max_rms_px (scaled); else the next set, then the search
 //     continues; when all fail: ok == false, "no registration found: ...".
 // Deterministic: the only randomness (sampling hypotheses beyond the
@@ -40,6 +41,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "mvkp/shapes/edge_evidence.h"
 #include "mvkp/shapes/shape_context.h"
 
 namespace mvkp {
@@ -67,13 +69,19 @@ struct RegistrationOptions {
   double inlier_fraction = 0.7;       // of a projected photo contour's points near one depth contour
   double max_area_ratio = 2.0;        // projected photo area vs depth area, either way
   int min_regions = 4;                // consistent region pairs needed to accept
+  int min_regions_with_evidence = 3;  // ... when the image check (EdgeEvidence) passes too
   double min_inlier_ratio = 0.3;      // consistent / regions mapped into the overlap
   double max_rms_px = 2.5;            // final RMS contour distance needed to accept (scaled as
                                       //   inlier_px, and by clamp((pairs - 1) / 5, 0.5, 1): few pairs, tighter)
+  double edge_rms_factor = 2.0;       // with image evidence (EdgeEvidence): max RMS = this * the
+                                      //   shape-only bound, since the outlines-on-edges test decides
+  bool edge_refine = true;            // with image evidence: snap the outlines onto the photo edges
   bool use_principal_directions = false; // §7.2.4: try hypotheses whose rotation fits the
                                          //   principal directions first; falls back to all
   double principal_tolerance_deg = 12;   // allowed rotation deviation from a predicted one
   enum class Model { kSimilarity, kAffine, kPerspective, kAuto } model = Model::kAuto;
+  int perspective_min_pairs = 4;      // kAuto: region pairs needed before the perspective model is
+                                      //   considered (ICP on all their contour points: well posed)
   std::uint64_t seed = 1;
   void Check() const;  // throws Error(kInvalidArgument)
 };
@@ -89,11 +97,17 @@ struct Registration {
   int hypotheses = 0;                 // seed hypotheses verified
   bool used_principal_directions = false;  // the restricted search produced the result
   double match_ms = 0, propagate_ms = 0;   // description + matching; hypotheses + refinement
+  EdgeScore edge;                     // image evidence of the result (of the last candidate when !ok)
 };
 
+// `evidence` (optional, not owned): the photo and all depth outlines (see
+// edge_evidence.h). With it, a candidate needs outlines on photo edges
+// (EdgeEvidence::Accepts) but may fit the region shapes more loosely
+// (edge_rms_factor), and the result is snapped onto the edges (edge_refine).
 Registration RegisterContours(const std::vector<Contour>& photo_regions,
                               const std::vector<Contour>& depth_regions,
-                              const RegistrationOptions& options = {});
+                              const RegistrationOptions& options = {},
+                              const EdgeEvidence* evidence = nullptr);
 
 // Applies a 3x3 transform to points (perspective division).
 Contour TransformPoints(const cv::Matx33d& T, const Contour& points);

@@ -1,0 +1,216 @@
+#include "mvkp/shapes/edge_evidence.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+
+namespace mvkp {
+
+void EdgeEvidenceOptions::Check() const {
+  auto need = [](bool c, const char* m) { Require(c, ErrorCode::kInvalidArgument, m); };
+  need(step_px > 0 && search_px >= 0 && offset_px > search_px,
+       "EdgeEvidenceOptions: need step_px > 0, search_px >= 0, offset_px > search_px");
+  need(blur_sigma >= 0 && blur_sigma <= 10, "EdgeEvidenceOptions.blur_sigma in [0, 10]");
+  need(min_points >= 1, "EdgeEvidenceOptions.min_points must be >= 1");
+  need(min_contrast > 0, "EdgeEvidenceOptions.min_contrast must be > 0");
+}
+
+namespace {
+
+// Bilinear sample of a CV_32F image; the caller keeps (x, y) inside [0, w-1) x [0, h-1).
+inline float At(const cv::Mat& m, float x, float y) {
+  const int x0 = int(x), y0 = int(y);
+  const float fx = x - float(x0), fy = y - float(y0);
+  const float* r0 = m.ptr<float>(y0) + x0;
+  const float* r1 = m.ptr<float>(y0 + 1) + x0;
+  return (r0[0] * (1 - fx) + r0[1] * fx) * (1 - fy) + (r1[0] * (1 - fx) + r1[1] * fx) * fy;
+}
+
+inline cv::Point2d Map(const cv::Matx33d& H, cv::Point2d p) {
+  const double w = H(2, 0) * p.x + H(2, 1) * p.y + H(2, 2);
+  const double iw = std::abs(w) > 1e-12 ? 1.0 / w : 1e12;
+  return {(H(0, 0) * p.x + H(0, 1) * p.y + H(0, 2)) * iw, (H(1, 0) * p.x + H(1, 1) * p.y + H(1, 2)) * iw};
+}
+
+}  // namespace
+
+EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& depth_regions,
+                           const EdgeEvidenceOptions& options)
+    : opt_(options), photo_scale_(photo_scale) {
+  opt_.Check();
+  Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
+          ErrorCode::kInvalidArgument, "EdgeEvidence: the photo must be 8-bit grey or BGR");
+  Require(photo_scale > 0 && std::isfinite(photo_scale), ErrorCode::kInvalidArgument,
+          "EdgeEvidence: photo_scale must be > 0");
+  cv::Mat g;
+  if (photo.channels() == 3) cv::cvtColor(photo, g, cv::COLOR_BGR2GRAY);
+  else g = photo;
+  g.convertTo(grey_, CV_32F);
+  if (opt_.blur_sigma > 0) cv::GaussianBlur(grey_, grey_, cv::Size(), opt_.blur_sigma);
+
+  // Outline samples every step_px of arc length, with normals from the
+  // neighbouring samples (closed contours).
+  for (const Contour& c : depth_regions) {
+    if (c.size() < 3) continue;
+    std::vector<cv::Point2f> pts;
+    double carry = 0;
+    for (size_t i = 0, n = c.size(); i < n; ++i) {
+      const cv::Point2f a = c[i], b = c[(i + 1) % n];
+      const double len = cv::norm(b - a);
+      double t = carry;
+      for (; t < len; t += opt_.step_px) pts.push_back(a + (b - a) * float(t / len));
+      carry = t - len;
+    }
+    const size_t n = pts.size();
+    if (n < 6) continue;
+    for (size_t i = 0; i < n; ++i) {
+      const cv::Point2f d = pts[(i + 1) % n] - pts[(i + n - 1) % n];
+      const double len = cv::norm(d);
+      if (len < 1e-6) continue;
+      samples_.push_back({pts[i], cv::Point2f(float(-d.y / len), float(d.x / len))});
+    }
+  }
+  // bound the cost on very large scenes: keep an even subset
+  constexpr size_t kMaxSamples = 6000;
+  if (samples_.size() > kMaxSamples) {
+    std::vector<Sample> kept;
+    kept.reserve(kMaxSamples);
+    for (size_t i = 0; i < kMaxSamples; ++i) kept.push_back(samples_[i * samples_.size() / kMaxSamples]);
+    samples_.swap(kept);
+  }
+}
+
+double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double search_px, int* points) const {
+  const float w = float(grey_.cols), h = float(grey_.rows);
+  double sum = 0;
+  int count = 0;
+  // a point is scored when the whole reference window (+-offset) fits, so
+  // on and off are averaged over the same outline points
+  const double reach = opt_.offset_px + opt_.search_px;
+  for (const Sample& s : samples_) {
+    const cv::Point2d p = Map(D, s.q);
+    const cv::Point2d pn = Map(D, cv::Point2d(s.q) + cv::Point2d(s.n));
+    cv::Point2d nu = pn - p;
+    const double k = std::hypot(nu.x, nu.y);  // image px per depth px
+    if (!(k > 1e-6) || k > 100) continue;
+    nu *= 1.0 / k;
+    const double r = std::max(reach * k, 4.0 + opt_.search_px * k) + 2;
+    if (!(p.x - r >= 0 && p.y - r >= 0 && p.x + r < w - 1 && p.y + r < h - 1)) continue;
+    const double half = search_px * k;
+    const int steps = half > 0 ? std::max(1, int(std::ceil(half))) : 0;
+    float best = 0;
+    for (int i = -steps; i <= steps; ++i) {
+      // the reference stays clear of the edge's blur however coarse the photo
+      const double centre = offset_px == 0 ? 0.0 : std::copysign(std::max(std::abs(offset_px) * k, 4.0), offset_px);
+      const double t = centre + (steps ? half * i / steps : 0.0);
+      const float x = float(p.x + nu.x * t), y = float(p.y + nu.y * t);
+      const float g = 0.5f * (At(grey_, x + float(nu.x), y + float(nu.y)) - At(grey_, x - float(nu.x), y - float(nu.y)));
+      best = std::max(best, std::abs(g));
+    }
+    sum += best;
+    ++count;
+  }
+  *points = count;
+  return count ? sum / count : 0.0;
+}
+
+EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth) const {
+  EdgeScore s;
+  const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
+  const cv::Matx33d D = S * photo_to_depth.inv();
+  int n0 = 0, n1 = 0, n2 = 0;
+  s.on = OnEdge(D, 0, opt_.search_px, &n0);
+  const double a = OnEdge(D, -opt_.offset_px, opt_.search_px, &n1), b = OnEdge(D, opt_.offset_px, opt_.search_px, &n2);
+  s.off = 0.5 * (a + b);
+  s.points = n0;
+  s.enough = n0 >= opt_.min_points;
+  s.contrast = s.enough ? s.on / std::max(s.off, 1e-6) : 0;
+  return s;
+}
+
+cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp) const {
+  const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
+  // the outline points in view define the frame of the correction
+  int n = 0;
+  const cv::Matx33d D0 = S * photo_to_depth.inv();
+  if (OnEdge(D0, 0, 0, &n), n < opt_.min_points) return photo_to_depth;
+  const float w = float(grey_.cols), h = float(grey_.rows);
+  cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
+  for (const Sample& s : samples_) {
+    const cv::Point2d p = Map(D0, s.q);
+    if (p.x < 0 || p.y < 0 || p.x >= w || p.y >= h) continue;
+    lo.x = std::min(lo.x, double(s.q.x)), lo.y = std::min(lo.y, double(s.q.y));
+    hi.x = std::max(hi.x, double(s.q.x)), hi.y = std::max(hi.y, double(s.q.y));
+  }
+  if (!(hi.x - lo.x > 4 && hi.y - lo.y > 4)) return photo_to_depth;
+  // Correction C in depth space, T' = C * T, given by where it moves the 4
+  // corners of the outlines' bounding box (8 parameters, depth px). The
+  // similarity stage moves them together (translation, rotation, scale).
+  const std::vector<cv::Point2f> box = {cv::Point2f(float(lo.x), float(lo.y)), cv::Point2f(float(hi.x), float(lo.y)),
+                                        cv::Point2f(float(hi.x), float(hi.y)), cv::Point2f(float(lo.x), float(hi.y))};
+  const cv::Point2f c = (box[0] + box[2]) * 0.5f;
+  auto correction = [&](const std::vector<double>& d) {
+    std::vector<cv::Point2f> moved(4);
+    for (int i = 0; i < 4; ++i) moved[i] = box[i] + cv::Point2f(float(d[2 * i]), float(d[2 * i + 1]));
+    return cv::Matx33d(cv::getPerspectiveTransform(box, moved));
+  };
+  double search = opt_.search_px;  // coarse: an edge anywhere in the window counts (wide basin)
+  auto score = [&](const std::vector<double>& d) {
+    const cv::Matx33d T = correction(d) * photo_to_depth;
+    int m = 0;
+    const double v = OnEdge(S * T.inv(), 0, search, &m);
+    return m >= opt_.min_points ? v * std::min(1.0, double(m) / n) : 0.0;  // don't win by leaving the photo
+  };
+  std::vector<double> d(8, 0.0);
+  double best = 0;
+  // similarity moves of the 4 corners: translation x/y, rotation, scale
+  auto similarity_move = [&](int k, double step) {
+    std::vector<double> m(8, 0.0);
+    for (int i = 0; i < 4; ++i) {
+      const cv::Point2f r = box[i] - c;
+      double dx = 0, dy = 0;
+      if (k == 0) dx = step;
+      else if (k == 1) dy = step;
+      else if (k == 2) dx = -r.y * step / std::max(1.0, cv::norm(r)), dy = r.x * step / std::max(1.0, cv::norm(r));
+      else dx = r.x * step / std::max(1.0, cv::norm(r)), dy = r.y * step / std::max(1.0, cv::norm(r));
+      m[2 * i] = dx, m[2 * i + 1] = dy;
+    }
+    return m;
+  };
+  auto ascend = [&](int dims, auto move, double step, double min_step) {
+    for (int guard = 0; step >= min_step && guard < 200; ++guard) {
+      bool improved = false;
+      for (int k = 0; k < dims; ++k)
+        for (double sgn : {1.0, -1.0}) {
+          const std::vector<double> m = move(k, sgn * step);
+          std::vector<double> t = d;
+          for (int i = 0; i < 8; ++i) t[i] += m[i];
+          const double v = score(t);
+          if (v > best * (1 + 1e-4)) best = v, d = t, improved = true;
+        }
+      if (!improved) step *= 0.5;
+    }
+  };
+  auto corner_move = [](int k, double step) {
+    std::vector<double> m(8, 0.0);
+    m[k] = step;
+    return m;
+  };
+  // coarse (window search, capture from a few px), then sharp (sampled on
+  // the outline, so the optimum is the edge itself)
+  for (double stage_search : {opt_.search_px, 0.0}) {
+    if (stage_search == 0 && !sharp) break;
+    search = stage_search;
+    best = score(d);
+    const double first = stage_search > 0 ? 2.0 : 0.5, last = stage_search > 0 ? 0.5 : 0.125;
+    ascend(4, similarity_move, first, last);
+    if (perspective && stage_search == 0) ascend(8, corner_move, first, last);
+  }
+  return correction(d) * photo_to_depth;
+}
+
+}  // namespace mvkp

@@ -1,0 +1,84 @@
+// Image evidence for a photo -> depth transform, independent of the photo
+// segmentation: do the depth image's building outlines fall on photo edges?
+//
+// Region shapes (register.h) propose transforms; a photo segmentation that
+// misses most roofs leaves few region pairs, and a handful of wrongly paired
+// regions can then look consistent. Every depth building outline, segmented
+// or not in the photo, should coincide with an intensity edge of the photo
+// (roof against ground, roof against its own shadow). This check maps the
+// outlines of ALL depth regions into the photo and compares the photo's
+// gradient across them with the gradient a few pixels beside them:
+//
+//   on(u)   = mean over outline points of max_{|t| <= search} |dI/dn|(x + (u + t) n)
+//   contrast = on(0) / mean(on(-offset), on(+offset))
+//
+// with n the outline normal mapped into the photo. A right transform puts the
+// outlines on edges (contrast well above 1); a wrong one samples the photo at
+// random (contrast near 1), whatever the photo's own edge density.
+//
+// Refine() nudges the transform (translation, rotation, scale; then the full
+// homography when asked) to maximise on(0): the outlines snap onto the edges,
+// which fixes the imprecision left by shape-only fitting of few regions.
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "mvkp/shapes/shape_context.h"
+
+namespace mvkp {
+
+struct EdgeEvidenceOptions {
+  double step_px = 2.0;       // spacing of outline samples, depth px
+  double search_px = 1.5;     // edge search on each side of an outline point, depth px
+  double offset_px = 5.0;     // where the off-outline reference is sampled, depth px
+  double blur_sigma = 1.0;    // Gaussian blur of the photo before differentiation, photo px
+  int min_points = 60;        // outline samples inside the photo needed for a verdict
+  double min_contrast = 1.8;  // accepted when contrast >= this (0 in the CLI: no image check)
+  void Check() const;         // throws Error(kInvalidArgument)
+};
+
+struct EdgeScore {
+  int points = 0;        // outline samples that map inside the photo
+  double on = 0;         // mean gradient across the outlines (grey levels / px)
+  double off = 0;        // the same `offset_px` beside them
+  double contrast = 0;   // on / off (0 when points < min_points)
+  bool enough = false;   // points >= min_points
+};
+
+class EdgeEvidence {
+ public:
+  // `photo`: 8-bit grey or BGR, the image the photo contours' coordinates
+  // refer to, scaled by `photo_scale` (contour px * photo_scale = image px;
+  // 1 when the image is the original). `depth_regions`: closed outlines in
+  // depth px (all segmented depth regions).
+  EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& depth_regions,
+               const EdgeEvidenceOptions& options = {});
+
+  EdgeScore Evaluate(const cv::Matx33d& photo_to_depth) const;
+  bool Accepts(const EdgeScore& s) const { return s.enough && s.contrast >= opt_.min_contrast; }
+
+  // Local maximisation of the gradient across the outlines, sampled on them
+  // (no search window, so the optimum is sharp), from `photo_to_depth` (coordinate ascent with
+  // shrinking steps): first a similarity correction with the search window
+  // (wide basin), then, when `sharp`, the similarity and (when `perspective`)
+  // the 8 homography parameters on the outline itself. Returns the improved
+  // transform.
+  cv::Matx33d Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp = true) const;
+
+  const EdgeEvidenceOptions& options() const { return opt_; }
+
+ private:
+  struct Sample {
+    cv::Point2f q, n;  // depth point and unit normal
+  };
+  double OnEdge(const cv::Matx33d& depth_to_image, double offset_px, double search_px, int* points) const;
+
+  EdgeEvidenceOptions opt_;
+  cv::Mat grey_;  // blurred photo, CV_32F
+  double photo_scale_ = 1;
+  std::vector<Sample> samples_;
+};
+
+}  // namespace mvkp

@@ -1,0 +1,149 @@
+#include "mvkp/shapes/edge_evidence.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/shapes/register.h"
+
+namespace mvkp {
+namespace {
+
+// A photo of roofs (filled polygons of random grey levels on textured ground,
+// with distracting road lines) and the same roofs' outlines in depth px,
+// related by `photo_to_depth`.
+struct Scene {
+  cv::Mat photo;
+  std::vector<Contour> depth_outlines;
+  cv::Matx33d photo_to_depth;
+};
+
+Scene MakeScene(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0, 1);
+  Scene s;
+  s.photo = cv::Mat(600, 800, CV_8UC3);
+  cv::randn(s.photo, cv::Scalar(110, 115, 105), cv::Scalar(12, 12, 12));
+  for (int i = 0; i < 12; ++i)  // roads and markings: edges that are not roofs
+    cv::line(s.photo, cv::Point(int(U(rng) * 800), int(U(rng) * 600)), cv::Point(int(U(rng) * 800), int(U(rng) * 600)),
+             cv::Scalar(70 + 100 * U(rng), 70 + 100 * U(rng), 70 + 100 * U(rng)), 3 + int(10 * U(rng)));
+  // photo -> depth: rotation 35 deg, scale 0.7, shift, mild perspective
+  const double a = 35 * CV_PI / 180, sc = 0.7;
+  s.photo_to_depth = cv::Matx33d(sc * std::cos(a), -sc * std::sin(a), 300, sc * std::sin(a), sc * std::cos(a), 40,
+                                 2e-5, -1e-5, 1);
+  std::vector<Contour> photo_roofs;
+  for (int i = 0; i < 14; ++i) {
+    const cv::Point2f c(float(80 + 640 * U(rng)), float(70 + 460 * U(rng)));
+    const float w = float(25 + 40 * U(rng)), h = float(20 + 35 * U(rng));
+    Contour r = {c + cv::Point2f(-w, -h), c + cv::Point2f(w, -h), c + cv::Point2f(w, h), c + cv::Point2f(-w / 3, h),
+                 c + cv::Point2f(-w / 3, h / 2), c + cv::Point2f(-w, h / 2)};
+    std::vector<cv::Point> ip;
+    for (const auto& p : r) ip.emplace_back(int(std::lround(p.x)), int(std::lround(p.y)));
+    const double g = U(rng) < 0.5 ? 40 + 40 * U(rng) : 170 + 60 * U(rng);  // darker or brighter than the ground
+    cv::fillPoly(s.photo, std::vector<std::vector<cv::Point>>{ip}, cv::Scalar(g, g, g + 10), cv::LINE_AA);
+    photo_roofs.push_back(r);
+  }
+  cv::GaussianBlur(s.photo, s.photo, cv::Size(), 0.7);
+  for (const auto& r : photo_roofs) s.depth_outlines.push_back(TransformPoints(s.photo_to_depth, r));
+  return s;
+}
+
+double MaxCornerError(const cv::Matx33d& A, const cv::Matx33d& B) {
+  double e = 0;
+  for (cv::Point2f p : {cv::Point2f(100, 100), cv::Point2f(700, 100), cv::Point2f(700, 500), cv::Point2f(100, 500)})
+    e = std::max(e, double(cv::norm(TransformPoints(A, {p})[0] - TransformPoints(B, {p})[0])));
+  return e;
+}
+
+TEST(EdgeEvidence, RightTransformHasOutlinesOnEdgesWrongOnesDoNot) {
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const Scene s = MakeScene(seed);
+    const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+    const EdgeScore right = ev.Evaluate(s.photo_to_depth);
+    EXPECT_TRUE(right.enough);
+    EXPECT_GE(right.contrast, 2.5) << "seed " << seed;
+    EXPECT_TRUE(ev.Accepts(right));
+    // wrong: shifted by 25 depth px, rotated by 20 degrees, scaled by 1.3
+    const double a = 20 * CV_PI / 180;
+    for (const cv::Matx33d& C : {cv::Matx33d(1, 0, 25, 0, 1, -10, 0, 0, 1),
+                                 cv::Matx33d(std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1),
+                                 cv::Matx33d(1.3, 0, -60, 0, 1.3, -20, 0, 0, 1)}) {
+      const EdgeScore wrong = ev.Evaluate(C * s.photo_to_depth);
+      EXPECT_LT(wrong.contrast, 1.5) << "seed " << seed;
+      EXPECT_FALSE(ev.Accepts(wrong));
+    }
+  }
+}
+
+TEST(EdgeEvidence, PhotoScaleMapsContourPixelsToImagePixels) {
+  const Scene s = MakeScene(4);
+  cv::Mat half;
+  cv::resize(s.photo, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+  const EdgeEvidence ev(half, 0.5, s.depth_outlines);  // contours stay in full-photo px
+  EXPECT_TRUE(ev.Accepts(ev.Evaluate(s.photo_to_depth)));
+}
+
+TEST(EdgeEvidence, RefineSnapsAnImpreciseTransformOntoTheEdges) {
+  const Scene s = MakeScene(5);
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+  // about the middle of the outlines: 1 % scale, 0.5 degree, (2, -1.5) px
+  const cv::Point2f c = TransformPoints(s.photo_to_depth, {cv::Point2f(400, 300)})[0];
+  const double a = 0.5 * CV_PI / 180;
+  const cv::Matx33d M(1.01 * std::cos(a), -1.01 * std::sin(a), 2, 1.01 * std::sin(a), 1.01 * std::cos(a), -1.5, 0, 0, 1);
+  const cv::Matx33d off = cv::Matx33d(1, 0, c.x, 0, 1, c.y, 0, 0, 1) * M * cv::Matx33d(1, 0, -c.x, 0, 1, -c.y, 0, 0, 1) *
+                          s.photo_to_depth;
+  ASSERT_GT(MaxCornerError(off, s.photo_to_depth), 4.0);
+  EXPECT_LT(MaxCornerError(ev.Refine(off, /*perspective=*/false), s.photo_to_depth), 1.0);
+  const cv::Matx33d refined = ev.Refine(off, /*perspective=*/true);
+  EXPECT_LT(MaxCornerError(refined, s.photo_to_depth), 1.0);
+  EXPECT_GT(ev.Evaluate(refined).on, ev.Evaluate(off).on);
+  // the right transform stays within a pixel of where it is
+  EXPECT_LT(MaxCornerError(ev.Refine(s.photo_to_depth, true), s.photo_to_depth), 1.0);
+}
+
+TEST(EdgeEvidence, NoVerdictWhenTheOutlinesMissThePhoto) {
+  const Scene s = MakeScene(6);
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+  const EdgeScore away = ev.Evaluate(cv::Matx33d(1, 0, 5000, 0, 1, 5000, 0, 0, 1) * s.photo_to_depth);
+  EXPECT_FALSE(away.enough);
+  EXPECT_EQ(away.points, 0);
+  EXPECT_FALSE(ev.Accepts(away));
+  const EdgeEvidence none(s.photo, 1.0, {});
+  EXPECT_FALSE(none.Evaluate(s.photo_to_depth).enough);
+}
+
+TEST(EdgeEvidence, RejectsBadInput) {
+  const Scene s = MakeScene(7);
+  EXPECT_THROW(EdgeEvidence(cv::Mat(), 1.0, s.depth_outlines), Error);
+  EXPECT_THROW(EdgeEvidence(cv::Mat(10, 10, CV_32F, cv::Scalar(0)), 1.0, s.depth_outlines), Error);
+  EXPECT_THROW(EdgeEvidence(s.photo, 0.0, s.depth_outlines), Error);
+  EdgeEvidenceOptions o;
+  o.offset_px = 1, o.search_px = 2;
+  EXPECT_THROW(EdgeEvidence(s.photo, 1.0, s.depth_outlines, o), Error);
+}
+
+// RegisterContours with image evidence: the evidence rejects a set of region
+// pairs that fits in shape but puts the outlines off the photo's edges.
+TEST(EdgeEvidence, RegistrationUsesTheImageCheck) {
+  const Scene s = MakeScene(8);
+  std::vector<Contour> photo_regions;
+  for (const auto& d : s.depth_outlines) photo_regions.push_back(TransformPoints(s.photo_to_depth.inv(), d));
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+  const Registration r = RegisterContours(photo_regions, s.depth_outlines, {}, &ev);
+  ASSERT_TRUE(r.ok) << r.reason;
+  EXPECT_LT(MaxCornerError(r.photo_to_depth, s.photo_to_depth), 1.0);
+  EXPECT_TRUE(r.edge.enough);
+  EXPECT_GE(r.edge.contrast, 2.5);
+  // a blank photo gives no edges: the same shapes are refused
+  const cv::Mat blank(s.photo.size(), CV_8UC3, cv::Scalar(120, 120, 120));
+  const EdgeEvidence flat(blank, 1.0, s.depth_outlines);
+  const Registration r2 = RegisterContours(photo_regions, s.depth_outlines, {}, &flat);
+  EXPECT_FALSE(r2.ok);
+  EXPECT_NE(r2.reason.find("image check"), std::string::npos) << r2.reason;
+}
+
+}  // namespace
+}  // namespace mvkp
