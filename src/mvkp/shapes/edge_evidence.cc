@@ -17,6 +17,7 @@ void EdgeEvidenceOptions::Check() const {
   need(blur_sigma >= 0 && blur_sigma <= 10, "EdgeEvidenceOptions.blur_sigma in [0, 10]");
   need(min_points >= 1, "EdgeEvidenceOptions.min_points must be >= 1");
   need(min_contrast > 0, "EdgeEvidenceOptions.min_contrast must be > 0");
+  need(min_perspective_gain >= 0, "EdgeEvidenceOptions.min_perspective_gain must be >= 0");
 }
 
 namespace {
@@ -208,7 +209,14 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
     best = score(d);
     const double first = stage_search > 0 ? 2.0 : 0.5, last = stage_search > 0 ? 0.5 : 0.125;
     ascend(4, similarity_move, first, last);
-    if (perspective && stage_search == 0) ascend(8, corner_move, first, last);
+    if (perspective && stage_search == 0) {
+      // the 8 parameters must earn their keep: few or bunched outlines let
+      // them tilt the plane for a marginal gain
+      const std::vector<double> kept = d;
+      const double before = best;
+      ascend(8, corner_move, first, last);
+      if (best < before * (1 + opt_.min_perspective_gain)) d = kept, best = before;
+    }
   }
   return correction(d) * photo_to_depth;
 }

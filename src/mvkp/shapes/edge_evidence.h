@@ -36,6 +36,8 @@ struct EdgeEvidenceOptions {
   double blur_sigma = 1.0;    // Gaussian blur of the photo before differentiation, photo px
   int min_points = 60;        // outline samples inside the photo needed for a verdict
   double min_contrast = 1.8;  // accepted when contrast >= this (0 in the CLI: no image check)
+  double min_perspective_gain = 0.02;  // Refine: the homography stage is kept when it raises
+                                       //   the edge response by this share over the similarity
   void Check() const;         // throws Error(kInvalidArgument)
 };
 

@@ -125,8 +125,9 @@ TEST(EdgeEvidence, RejectsBadInput) {
   EXPECT_THROW(EdgeEvidence(s.photo, 1.0, s.depth_outlines, o), Error);
 }
 
-// RegisterContours with image evidence: the evidence rejects a set of region
-// pairs that fits in shape but puts the outlines off the photo's edges.
+// RegisterContours with image evidence: shapes alone accept from min_regions
+// (4) region pairs; with outlines on photo edges 3 pairs suffice, and a photo
+// without those edges does not lend that support.
 TEST(EdgeEvidence, RegistrationUsesTheImageCheck) {
   const Scene s = MakeScene(8);
   std::vector<Contour> photo_regions;
@@ -137,12 +138,26 @@ TEST(EdgeEvidence, RegistrationUsesTheImageCheck) {
   EXPECT_LT(MaxCornerError(r.photo_to_depth, s.photo_to_depth), 1.0);
   EXPECT_TRUE(r.edge.enough);
   EXPECT_GE(r.edge.contrast, 2.5);
-  // a blank photo gives no edges: the same shapes are refused
+
+  // 3 regions: below min_regions, so only the image route can accept
+  const std::vector<Contour> p3(photo_regions.begin(), photo_regions.begin() + 3);
+  const std::vector<Contour> d3(s.depth_outlines.begin(), s.depth_outlines.begin() + 3);
+  const EdgeEvidence ev3(s.photo, 1.0, d3);
+  const Registration r3 = RegisterContours(p3, d3, {}, &ev3);
+  ASSERT_TRUE(r3.ok) << r3.reason;
+  // (a similarity fits 3 nearby roofs; the scene's perspective shows away from them)
+  double err3 = 0;
+  for (const auto& c : p3)
+    for (const auto& p : c)
+      err3 = std::max(err3, double(cv::norm(TransformPoints(r3.photo_to_depth, {p})[0] -
+                                            TransformPoints(s.photo_to_depth, {p})[0])));
+  EXPECT_LT(err3, 1.0);
+  EXPECT_FALSE(RegisterContours(p3, d3, {}).ok);  // no image, no registration
   const cv::Mat blank(s.photo.size(), CV_8UC3, cv::Scalar(120, 120, 120));
-  const EdgeEvidence flat(blank, 1.0, s.depth_outlines);
-  const Registration r2 = RegisterContours(photo_regions, s.depth_outlines, {}, &flat);
-  EXPECT_FALSE(r2.ok);
-  EXPECT_NE(r2.reason.find("image check"), std::string::npos) << r2.reason;
+  const EdgeEvidence flat(blank, 1.0, d3);
+  const Registration r4 = RegisterContours(p3, d3, {}, &flat);
+  EXPECT_FALSE(r4.ok);
+  EXPECT_NE(r4.reason.find("image check"), std::string::npos) << r4.reason;
 }
 
 }  // namespace

@@ -682,10 +682,20 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     if (chosen < 0) return "refinement of the consistent set failed";
     Fitted f = fits[chosen];
     double ratio;
-    // less evidence (few region pairs) -> demand a tighter fit
+    // Two ways to accept:
+    //  - shapes alone: min_regions pairs, RMS <= max_rms_px (scaled; fewer
+    //    pairs, tighter);
+    //  - shapes + image: the outlines lie on photo edges (EdgeEvidence), with
+    //    min_regions_with_evidence pairs and edge_rms_factor x the RMS bound.
+    // Photos whose roofs lean (conventional orthophotos) can fail the image
+    // check while the shapes agree; the shape-only route still holds there.
     const double support = std::clamp((double(pairs.size()) - 1.0) / 5.0, 0.5, 1.0);
-    double max_rms = support * opt.max_rms_px * tol / opt.inlier_px;
+    const double max_rms = support * opt.max_rms_px * tol / opt.inlier_px;
+    const Fitted shape_fit = f;
+    const bool consistent = acceptable(Evaluation{pairs, {}, 0}, f.T, &ratio);
+    const bool shape_ok = consistent && int(pairs.size()) >= opt.min_regions && f.rms <= max_rms;
     EdgeScore es;
+    bool image_ok = false;
     if (evidence) {
       es = evidence->Evaluate(f.T);
       // a right but imprecise fit (few region pairs) puts the outlines beside
@@ -699,19 +709,20 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
           verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
         }
       }
+      image_ok = consistent && evidence->Accepts(es) && f.rms <= opt.edge_rms_factor * max_rms;
     }
     res.edge = es;
-    if (es.enough) max_rms *= opt.edge_rms_factor;
-    if (!acceptable(Evaluation{pairs, {}, 0}, f.T, &ratio) || f.rms > max_rms)
-      return cv::format("best consistent set fails the checks (%d region pairs, ratio %.2f, RMS %.2f px > %.2f)",
-                        int(pairs.size()), ratio, f.rms, max_rms);
-    if (!es.enough && int(pairs.size()) < opt.min_regions)
-      return cv::format("best consistent set has %d region pairs (need %d without image evidence)", int(pairs.size()),
-                        opt.min_regions);
-    if (es.enough && !evidence->Accepts(es))
+    if (!shape_ok && !image_ok) {
+      if (!consistent || !es.enough || f.rms > opt.edge_rms_factor * max_rms)
+        return cv::format("best consistent set fails the checks (%d region pairs, ratio %.2f, RMS %.2f px > %.2f)",
+                          int(pairs.size()), ratio, shape_fit.rms, max_rms);
       return cv::format("best consistent set fails the image check (%d region pairs, outline edge contrast %.2f < %.2f)",
                         int(pairs.size()), es.contrast, evidence->options().min_contrast);
-    if (es.enough && opt.edge_refine) {
+    }
+    if (!image_ok) {
+      f = shape_fit;  // accepted on shapes alone: keep their fit
+      res.edge = es;
+    } else if (opt.edge_refine) {
       const bool persp = opt.model == Model::kPerspective || opt.model == Model::kAuto;
       const cv::Matx33d T2 = evidence->Refine(f.T, persp);
       if (persp && f.m != Model::kPerspective) f.m = Model::kPerspective;
