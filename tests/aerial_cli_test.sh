@@ -50,12 +50,21 @@ for s in 0 1 2 3 4 5; do
   echo "scene $s: $r ($(grep -o '"reason":"[^"]*"' "$T/reg$s.json"))"
   case $r in ok\ *) awk -v e="${r#ok }" 'BEGIN{exit !(e <= 5)}' && good=$((good + 1)) || fail "register scene $s: WRONG registration reported as success ($r)";; esac
 done
-check "register: generated scenes within 5 px: $good of 6 (at least ${MIN_GOOD:=2}), none wrong" test $good -ge "$MIN_GOOD"
+check "register: generated scenes within 5 px: $good of 6 (at least ${MIN_GOOD:=3}), none wrong" test $good -ge "$MIN_GOOD"
 check "register --draw wrote a drawing" test -s "$T/reg0.png"
 check "register --json: the correspondence JSON with per-stage times" "$PY" -c "
 import json; j = json.load(open('$T/reg0.json'))
 assert j['method'] == 'mvkp-register' and 'matches' in j and 'region_matches' in j
 assert all(k in j['time_ms'] for k in ('read', 'segment_depth', 'segment_photo', 'match', 'propagate', 'total'))"
+check "register --json: the image evidence (outline edge contrast) of the registered scenes" "$PY" -c "
+import json
+js = [json.load(open('$T/reg%d.json' % s)) for s in range(6)]
+oks = [j for j in js if j['ok']]
+assert oks and all(j['edge'] is None or j['edge']['contrast'] > 0 for j in oks)
+assert any(j['edge'] and j['edge']['contrast'] >= 1.8 and j['edge']['points'] >= 60 for j in oks)"
+run "$MVKP" register "$T/c/city_0000/depth.tif" "$T/c/city_0000/photo.png" --json --min-edge-contrast 0 --no-edge-refine
+check "register --min-edge-contrast 0: no image evidence in the answer" "$PY" -c "
+import json; j = json.load(open('$T/out')); assert j['edge'] is None"
 
 d=$T/n/city_0000
 expect_ok "register a photo of other ground: exit 0" "$MVKP" register "$d/depth.tif" "$d/photo.png" --json
