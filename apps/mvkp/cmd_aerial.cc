@@ -195,7 +195,7 @@ int RunRegister(RegisterArgs& a) {
     const double start_rss_mb = RssMb();
     Timer total;
     const geo::DepthRaster d = LoadDepth(a.depth, a.res_m);
-    const geo::OpticalImage img = geo::ReadOpticalImage(a.optical);
+    geo::OpticalImage img = geo::ReadOpticalImage(a.optical);
     const double read_ms = total.ElapsedMs();
     Timer td;
     const std::vector<BuildingRegion> dregions = SegmentDepth(d.z);
@@ -210,6 +210,8 @@ int RunRegister(RegisterArgs& a) {
       f = double(a.photo_max_side) / std::max(work.cols, work.rows);
       cv::resize(img.bgr, work, cv::Size(), f, f, cv::INTER_AREA);
     }
+    const cv::Size photo_size = img.bgr.size();
+    if (a.draw.empty()) img.bgr.release();  // the full-size photo is only drawn on
     OpticalSegmentOptions oo;
     LoadOrthoModels(a.fbm, a.lda, oo);
     const std::vector<PhotoRegion> pregions = SegmentOptical(work, oo);
@@ -259,7 +261,7 @@ int RunRegister(RegisterArgs& a) {
     else out["edge"] = nullptr;
     out["hypotheses"] = reg.hypotheses;
     out["depth"] = {{"size", {d.z.cols, d.z.rows}}, {"res_m", d.res_m}};
-    out["photo"] = {{"size", {img.bgr.cols, img.bgr.rows}}};
+    out["photo"] = {{"size", {photo_size.width, photo_size.height}}};
     out["time_ms"] = {{"read", read_ms},          {"segment_depth", depth_ms}, {"segment_photo", photo_ms},
                       {"match", reg.match_ms},    {"propagate", reg.propagate_ms},
                       {"query", total_ms - read_ms}, {"total", total_ms}};

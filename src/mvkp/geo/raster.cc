@@ -17,6 +17,7 @@
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <gdal.h>
+#include <gdal_frmts.h>
 #include <ogr_srs_api.h>
 #include <opencv2/imgproc.hpp>
 
@@ -51,8 +52,11 @@ void CheckFile(const std::string& path) {
 class GdalQuiet {
  public:
   GdalQuiet() {
+    // GeoTIFF only at first: registering all ~200 drivers touches ~11 MB of
+    // GDAL's pages (the issue-8 memory budget); Open() adds the rest when a
+    // file needs them.
     static std::once_flag once;
-    std::call_once(once, [] { GDALAllRegister(); });
+    std::call_once(once, [] { GDALRegister_GTiff(); });
     CPLPushErrorHandler(CPLQuietErrorHandler);
     CPLErrorReset();
   }
@@ -71,7 +75,17 @@ struct GdalClose {
 using Dataset = std::unique_ptr<void, GdalClose>;
 
 Dataset Open(const std::string& path) {
-  return Dataset(GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr));
+  Dataset ds(GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr));
+  if (!ds) {
+    static std::once_flag all;
+    bool registered = false;
+    std::call_once(all, [&] { GDALAllRegister(), registered = true; });
+    if (registered) {
+      CPLErrorReset();
+      ds.reset(GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr));
+    }
+  }
+  return ds;
 }
 
 // Geotransform, CRS and metres per pixel of an open dataset.
@@ -308,7 +322,21 @@ OpticalImage ReadOpticalImage(const std::string& path, const ImageLimits& limits
       opencv_error = std::string(" (OpenCV: ") + e.what() + ")";
     }
   }
-  Dataset ds = Open(path);
+  // A PNG/JPEG/PNM/BMP carries a georeference only in a sidecar file (world
+  // file or .aux.xml); without one GDAL has nothing to add (and opening it
+  // would register every driver: ~7 MB of resident pages).
+  auto has_sidecar = [&] {
+    const fs::path p(path);
+    std::string ext = p.extension().string();
+    if (ext.size() >= 3) ext = std::string(".") + ext[1] + ext.back() + "w";  // .png -> .pgw
+    std::error_code ec;
+    for (const fs::path& side : {fs::path(path + ".aux.xml"), fs::path(p).replace_extension(ext),
+                                 fs::path(path + "w"), fs::path(p).replace_extension(".wld")})
+      if (fs::exists(side, ec)) return true;
+    return false;
+  };
+  Dataset ds;
+  if (out.bgr.empty() || format == "tiff" || format == "unknown" || has_sidecar()) ds = Open(path);
   if (out.bgr.empty()) {
     if (!ds) Bad(path, "not an image OpenCV or GDAL can read" + GdalQuiet::Last() + opencv_error);
     out.bgr = ReadGdalOptical(path, ds.get(), limits);

@@ -450,6 +450,16 @@ TEST(OrthoModels, FbmFitOnSyntheticTexture) {
   // Smooth (man-made) patches have a higher fractal error than the texture.
   cv::Mat1b flat(sz, 128);
   EXPECT_GT(cv::mean(OverallFractalError(flat, m)(cv::Rect(10, 10, 280, 280)))[0], m.ofe);
+  // computed in row strips (the memory-saving default) = all at once
+  const cv::Mat1f whole = OverallFractalError(g, m, 0);
+  for (int strip : {1, 7, 96}) {
+    const cv::Mat1f strips = OverallFractalError(g, m, strip);
+    ASSERT_EQ(strips.size(), whole.size());
+    double worst = 0;
+    for (int y = 0; y < whole.rows; ++y)
+      for (int x = 0; x < whole.cols; ++x) worst = std::max(worst, double(std::abs(strips(y, x) - whole(y, x))));
+    EXPECT_LT(worst, 1e-3) << "strip_rows " << strip;
+  }
 
   const std::string path = (std::filesystem::temp_directory_path() / "mvkp_ortho_fbm.json").string();
   SaveFbmModel(path, m);

@@ -46,7 +46,9 @@ FbmModel FitFbm(const std::vector<cv::Mat>& images, const std::vector<cv::Mat>& 
 // Overall fractal error of every pixel of an 8-bit grey image (CV_32F), for
 // the whole image at once with box filters (about 4 ms per megapixel and
 // distance class); the image border is handled by reflection.
-cv::Mat1f OverallFractalError(const cv::Mat1b& gray, const FbmModel& model);
+// Computed in row strips of `strip_rows` (0: the whole image at once); the
+// result does not depend on it.
+cv::Mat1f OverallFractalError(const cv::Mat1b& gray, const FbmModel& model, int strip_rows = 96);
 
 struct RegionLda {
   std::array<double, 5> w{};  // weights on (x, y, xy, x², y²)
