@@ -163,7 +163,7 @@ def main():
         if j is None:
             row.update(ok=False, error=err)
         else:
-            row.update(ok=j["ok"], reason=j["reason"], model=j["model"], time_ms=j["time_ms"], peak_rss_mb=j["peak_rss_mb"],
+            row.update(ok=j["ok"], reason=j["reason"], model=j["model"], time_ms=j["time_ms"], peak_rss_mb=j["peak_rss_mb"], edge=j.get("edge"),
                        peak_rss_above_start_mb=j.get("peak_rss_above_start_mb"), regions=j["regions"])
             if j["ok"]:
                 e, nvis = corner_error(h_of(j["homography"]), Ht, truth["corners"], psize)

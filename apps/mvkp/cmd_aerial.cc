@@ -257,7 +257,9 @@ int RunRegister(RegisterArgs& a) {
       rm.push_back({{"photo", m.a}, {"depth", m.b}, {"cost", m.cost}, {"cost_ratio", m.cost_ratio}});
     out["region_matches"] = rm;
     out["rms_px"] = reg.rms_px;
-    if (reg.edge.enough) out["edge"] = {{"points", reg.edge.points}, {"contrast", reg.edge.contrast}};
+    if (reg.edge.enough)
+      out["edge"] = {{"points", reg.edge.points}, {"contrast", reg.edge.contrast}, {"regions", reg.edge.regions},
+                     {"regions_on_edges", reg.edge.regions_on_edges}};
     else out["edge"] = nullptr;
     out["hypotheses"] = reg.hypotheses;
     out["depth"] = {{"size", {d.z.cols, d.z.rows}}, {"res_m", d.res_m}};

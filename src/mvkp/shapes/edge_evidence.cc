@@ -18,6 +18,9 @@ void EdgeEvidenceOptions::Check() const {
   need(min_points >= 1, "EdgeEvidenceOptions.min_points must be >= 1");
   need(min_contrast > 0, "EdgeEvidenceOptions.min_contrast must be > 0");
   need(min_perspective_gain >= 0, "EdgeEvidenceOptions.min_perspective_gain must be >= 0");
+  need(outward_growth > 1, "EdgeEvidenceOptions.outward_growth must be > 1");
+  need(min_region_points >= 1 && min_region_contrast > 0 && min_regions_on_edges >= 0 && min_regions_on_edges <= 1,
+       "EdgeEvidenceOptions: min_region_points >= 1, min_region_contrast > 0, min_regions_on_edges in [0, 1]");
 }
 
 namespace {
@@ -72,8 +75,9 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
       const cv::Point2f d = pts[(i + 1) % n] - pts[(i + n - 1) % n];
       const double len = cv::norm(d);
       if (len < 1e-6) continue;
-      samples_.push_back({pts[i], cv::Point2f(float(-d.y / len), float(d.x / len))});
+      samples_.push_back({pts[i], cv::Point2f(float(-d.y / len), float(d.x / len)), regions_});
     }
+    ++regions_;
   }
   // bound the cost on very large scenes: keep an even subset
   constexpr size_t kMaxSamples = 6000;
@@ -85,7 +89,9 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
   }
 }
 
-double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double search_px, int* points) const {
+double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double search_px, int* points,
+                            const cv::Rect2d* support, std::vector<double>* region_sum,
+                            std::vector<int>* region_count) const {
   const float w = float(grey_.cols), h = float(grey_.rows);
   double sum = 0;
   int count = 0;
@@ -93,6 +99,7 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double searc
   // on and off are averaged over the same outline points
   const double reach = opt_.offset_px + opt_.search_px;
   for (const Sample& s : samples_) {
+    if (support && !support->contains(cv::Point2d(s.q))) continue;
     const cv::Point2d p = Map(D, s.q);
     const cv::Point2d pn = Map(D, cv::Point2d(s.q) + cv::Point2d(s.n));
     cv::Point2d nu = pn - p;
@@ -114,6 +121,7 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double searc
     }
     sum += best;
     ++count;
+    if (region_sum) (*region_sum)[size_t(s.region)] += best, ++(*region_count)[size_t(s.region)];
   }
   *points = count;
   return count ? sum / count : 0.0;
@@ -124,8 +132,17 @@ EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth) const {
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   const cv::Matx33d D = S * photo_to_depth.inv();
   int n0 = 0, n1 = 0, n2 = 0;
-  s.on = OnEdge(D, 0, opt_.search_px, &n0);
-  const double a = OnEdge(D, -opt_.offset_px, opt_.search_px, &n1), b = OnEdge(D, opt_.offset_px, opt_.search_px, &n2);
+  std::vector<double> on_r(size_t(regions_), 0.0), off_r(size_t(regions_), 0.0);
+  std::vector<int> n_on(size_t(regions_), 0), n_off(size_t(regions_), 0);
+  s.on = OnEdge(D, 0, opt_.search_px, &n0, nullptr, &on_r, &n_on);
+  const double a = OnEdge(D, -opt_.offset_px, opt_.search_px, &n1, nullptr, &off_r, &n_off);
+  const double b = OnEdge(D, opt_.offset_px, opt_.search_px, &n2, nullptr, &off_r, &n_off);
+  for (int r = 0; r < regions_; ++r) {
+    if (n_on[size_t(r)] < opt_.min_region_points) continue;
+    ++s.regions;
+    const double on = on_r[size_t(r)] / n_on[size_t(r)], off = off_r[size_t(r)] / std::max(1, n_off[size_t(r)]);
+    if (on >= opt_.min_region_contrast * std::max(off, 1e-6)) ++s.regions_on_edges;
+  }
   s.off = 0.5 * (a + b);
   s.points = n0;
   s.enough = n0 >= opt_.min_points;
@@ -133,15 +150,17 @@ EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth) const {
   return s;
 }
 
-cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp) const {
+cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
+                                 const cv::Rect2d* support) const {
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   // the outline points in view define the frame of the correction
   int n = 0;
   const cv::Matx33d D0 = S * photo_to_depth.inv();
-  if (OnEdge(D0, 0, 0, &n), n < opt_.min_points) return photo_to_depth;
+  if (OnEdge(D0, 0, 0, &n, support), n < opt_.min_points) return photo_to_depth;
   const float w = float(grey_.cols), h = float(grey_.rows);
   cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
   for (const Sample& s : samples_) {
+    if (support && !support->contains(cv::Point2d(s.q))) continue;
     const cv::Point2d p = Map(D0, s.q);
     if (p.x < 0 || p.y < 0 || p.x >= w || p.y >= h) continue;
     lo.x = std::min(lo.x, double(s.q.x)), lo.y = std::min(lo.y, double(s.q.y));
@@ -163,7 +182,7 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
   auto score = [&](const std::vector<double>& d) {
     const cv::Matx33d T = correction(d) * photo_to_depth;
     int m = 0;
-    const double v = OnEdge(S * T.inv(), 0, search, &m);
+    const double v = OnEdge(S * T.inv(), 0, search, &m, support);
     return m >= opt_.min_points ? v * std::min(1.0, double(m) / n) : 0.0;  // don't win by leaving the photo
   };
   std::vector<double> d(8, 0.0);
@@ -209,7 +228,7 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
     best = score(d);
     const double first = stage_search > 0 ? 2.0 : 0.5, last = stage_search > 0 ? 0.5 : 0.125;
     ascend(4, similarity_move, first, last);
-    if (perspective && stage_search == 0) {
+    if (perspective && (stage_search == 0 || support)) {
       // the 8 parameters must earn their keep: few or bunched outlines let
       // them tilt the plane for a marginal gain
       const std::vector<double> kept = d;
@@ -219,6 +238,25 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
     }
   }
   return correction(d) * photo_to_depth;
+}
+
+cv::Matx33d EdgeEvidence::RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective) const {
+  // the extent of all outlines
+  cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
+  for (const Sample& s : samples_)
+    lo.x = std::min(lo.x, double(s.q.x)), lo.y = std::min(lo.y, double(s.q.y)),
+    hi.x = std::max(hi.x, double(s.q.x)), hi.y = std::max(hi.y, double(s.q.y));
+  cv::Matx33d T = photo_to_depth;
+  cv::Rect2d box = seed;
+  for (int step = 0; step < 12; ++step) {
+    const bool all = box.x <= lo.x && box.y <= lo.y && box.br().x >= hi.x && box.br().y >= hi.y;
+    T = Refine(T, perspective, /*sharp=*/all, all ? nullptr : &box);
+    if (all) break;
+    const cv::Point2d c(box.x + box.width / 2, box.y + box.height / 2);
+    const double gw = box.width * opt_.outward_growth, gh = box.height * opt_.outward_growth;
+    box = cv::Rect2d(c.x - gw / 2, c.y - gh / 2, gw, gh);
+  }
+  return T;
 }
 
 }  // namespace mvkp

@@ -36,7 +36,11 @@ struct EdgeEvidenceOptions {
   double blur_sigma = 1.0;    // Gaussian blur of the photo before differentiation, photo px
   int min_points = 60;        // outline samples inside the photo needed for a verdict
   double min_contrast = 1.8;  // accepted when contrast >= this (0 in the CLI: no image check)
-  double min_perspective_gain = 0.02;  // Refine: the homography stage is kept when it raises
+  double min_perspective_gain = 0.02;
+  double outward_growth = 1.4;
+  int min_region_points = 8;      // per-outline contrast: samples in view needed
+  double min_region_contrast = 1.5;  // an outline "on edges" (its own contrast)
+  double min_regions_on_edges = 0.45;  // share of outlines in view on edges, for a refined result  // RefineOutward: support side growth per step  // Refine: the homography stage is kept when it raises
                                        //   the edge response by this share over the similarity
   void Check() const;         // throws Error(kInvalidArgument)
 };
@@ -47,6 +51,8 @@ struct EdgeScore {
   double off = 0;        // the same `offset_px` beside them
   double contrast = 0;   // on / off (0 when points < min_points)
   bool enough = false;   // points >= min_points
+  int regions = 0;           // outlines with >= min_region_points samples in view
+  int regions_on_edges = 0;  // ... whose own contrast is >= min_region_contrast
 };
 
 class EdgeEvidence {
@@ -67,20 +73,34 @@ class EdgeEvidence {
   // (wide basin), then, when `sharp`, the similarity and (when `perspective`)
   // the 8 homography parameters on the outline itself. Returns the improved
   // transform.
-  cv::Matx33d Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp = true) const;
+  // `support` (depth px): only outlines inside it count.
+  cv::Matx33d Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp = true,
+                     const cv::Rect2d* support = nullptr) const;
+
+  // Refine from `seed` (depth px; where the transform was fitted, e.g. the
+  // matched regions) outwards: the support grows by outward_growth per step
+  // until it holds every outline, so outlines far from the fitted regions,
+  // where a transform fitted on a few nearby regions errs most, are only
+  // used once the nearer ones have corrected it (coarse window at each
+  // step, then the sharp pass over all).
+  cv::Matx33d RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective) const;
 
   const EdgeEvidenceOptions& options() const { return opt_; }
 
  private:
   struct Sample {
     cv::Point2f q, n;  // depth point and unit normal
+    int region = 0;    // index of its outline
   };
-  double OnEdge(const cv::Matx33d& depth_to_image, double offset_px, double search_px, int* points) const;
+  double OnEdge(const cv::Matx33d& depth_to_image, double offset_px, double search_px, int* points,
+                const cv::Rect2d* support = nullptr, std::vector<double>* region_sum = nullptr,
+                std::vector<int>* region_count = nullptr) const;
 
   EdgeEvidenceOptions opt_;
   cv::Mat grey_;  // blurred photo, CV_32F
   double photo_scale_ = 1;
   std::vector<Sample> samples_;
+  int regions_ = 0;  // outlines with samples
 };
 
 }  // namespace mvkp

@@ -66,6 +66,8 @@ TEST(EdgeEvidence, RightTransformHasOutlinesOnEdgesWrongOnesDoNot) {
     EXPECT_TRUE(right.enough);
     EXPECT_GE(right.contrast, 2.5) << "seed " << seed;
     EXPECT_TRUE(ev.Accepts(right));
+    EXPECT_GE(right.regions, 10);
+    EXPECT_GE(right.regions_on_edges, right.regions - 1);  // every roof outline on its edges
     // wrong: shifted by 25 depth px, rotated by 20 degrees, scaled by 1.3
     const double a = 20 * CV_PI / 180;
     for (const cv::Matx33d& C : {cv::Matx33d(1, 0, 25, 0, 1, -10, 0, 0, 1),
@@ -74,6 +76,7 @@ TEST(EdgeEvidence, RightTransformHasOutlinesOnEdgesWrongOnesDoNot) {
       const EdgeScore wrong = ev.Evaluate(C * s.photo_to_depth);
       EXPECT_LT(wrong.contrast, 1.5) << "seed " << seed;
       EXPECT_FALSE(ev.Accepts(wrong));
+      EXPECT_LT(wrong.regions_on_edges, wrong.regions / 2 + 1);
     }
   }
 }
@@ -102,6 +105,27 @@ TEST(EdgeEvidence, RefineSnapsAnImpreciseTransformOntoTheEdges) {
   EXPECT_GT(ev.Evaluate(refined).on, ev.Evaluate(off).on);
   // the right transform stays within a pixel of where it is
   EXPECT_LT(MaxCornerError(ev.Refine(s.photo_to_depth, true), s.photo_to_depth), 1.0);
+}
+
+// A transform right near some roofs but tilted (perspective) away from them:
+// refining outwards from those roofs corrects the far ones too.
+TEST(EdgeEvidence, RefineOutwardFixesExtrapolation) {
+  const Scene s = MakeScene(9);
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+  // error growing with the distance from a seed corner of the depth extent
+  cv::Rect2d all = cv::boundingRect(s.depth_outlines[0]);
+  for (const auto& c : s.depth_outlines) all |= cv::Rect2d(cv::boundingRect(c));
+  const cv::Rect2d seed(all.x, all.y, all.width * 0.35, all.height * 0.35);
+  const std::vector<cv::Point2f> from = {cv::Point2f(float(all.x), float(all.y)), cv::Point2f(float(all.br().x), float(all.y)),
+                                         cv::Point2f(float(all.br().x), float(all.br().y)), cv::Point2f(float(all.x), float(all.br().y))};
+  std::vector<cv::Point2f> to = from;
+  to[1] += cv::Point2f(3, 4), to[2] += cv::Point2f(-6, 7), to[3] += cv::Point2f(4, -3);
+  const cv::Matx33d off = cv::Matx33d(cv::getPerspectiveTransform(from, to)) * s.photo_to_depth;
+  ASSERT_GT(MaxCornerError(off, s.photo_to_depth), 4.0);
+  const cv::Matx33d refined = ev.RefineOutward(off, seed, /*perspective=*/true);
+  EXPECT_LT(MaxCornerError(refined, s.photo_to_depth), 1.5);
+  const EdgeScore e = ev.Evaluate(refined);
+  EXPECT_GE(e.regions_on_edges, e.regions - 1);
 }
 
 TEST(EdgeEvidence, NoVerdictWhenTheOutlinesMissThePhoto) {

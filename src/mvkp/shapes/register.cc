@@ -30,6 +30,7 @@ void RegistrationOptions::Check() const {
        "RegistrationOptions: min_regions and min_regions_with_evidence must be >= 2");
   need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "RegistrationOptions.min_inlier_ratio in [0, 1]");
   need(max_rms_px > 0, "RegistrationOptions.max_rms_px must be > 0");
+  need(grow_tolerance >= 1 && grow_tolerance <= 4, "RegistrationOptions.grow_tolerance in [1, 4]");
   need(perspective_min_pairs >= 4, "RegistrationOptions.perspective_min_pairs must be >= 4");
   need(edge_rms_factor >= 1 && edge_rms_factor <= 10, "RegistrationOptions.edge_rms_factor in [1, 10]");
   need(principal_tolerance_deg > 0 && principal_tolerance_deg < 45,
@@ -674,7 +675,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       if (chosen < 0) break;
       // propagate with the most accurate fit: the set may grow (and allow a
       // richer model); stop when it does not
-      Evaluation fin = verifier.Evaluate(fits[most_accurate].T, tol);
+      Evaluation fin = verifier.Evaluate(fits[most_accurate].T, opt.grow_tolerance * tol);
       if (fin.count() <= int(pairs.size())) break;
       pairs = fin.pairs;
       start = fits[most_accurate].T;
@@ -724,11 +725,23 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       res.edge = es;
     } else if (opt.edge_refine) {
       const bool persp = opt.model == Model::kPerspective || opt.model == Model::kAuto;
-      const cv::Matx33d T2 = evidence->Refine(f.T, persp);
+      // outwards from the region pairs the transform was fitted on
+      Corr cc = verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+      std::vector<cv::Point2f> dp;
+      for (const auto& pq : cc) dp.push_back(pq.second);
+      const cv::Matx33d T2 = dp.size() >= 3 ? evidence->RefineOutward(f.T, cv::boundingRect(dp), persp)
+                                            : evidence->Refine(f.T, persp);
       if (persp && f.m != Model::kPerspective) f.m = Model::kPerspective;
       f.T = T2;
       verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
       res.edge = evidence->Evaluate(f.T);
+      // right near the matched regions but not across the overlap (a fit
+      // of a few clustered regions extrapolated): most outlines in view
+      // must lie on edges
+      const EdgeScore& e = res.edge;
+      if (e.regions >= 8 && e.regions_on_edges < evidence->options().min_regions_on_edges * e.regions)
+        return cv::format("best consistent set fits only part of the photo (%d of %d outlines in view on edges)",
+                          e.regions_on_edges, e.regions);
     }
     double scale, rot;
     if (!LocalScaleRotation(f.T, photo[pairs[0].first].centroid, &scale, &rot))

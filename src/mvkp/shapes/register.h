@@ -68,6 +68,8 @@ struct RegistrationOptions {
                                       //   max(1, photo->depth scale) (photo noise grows with it)
   double inlier_fraction = 0.7;       // of a projected photo contour's points near one depth contour
   double max_area_ratio = 2.0;        // projected photo area vs depth area, either way
+  double grow_tolerance = 1.5;        // final propagation: regions within this x inlier_px join the
+                                      //   set (a fit of a few nearby regions is least accurate far away)
   int min_regions = 4;                // consistent region pairs needed to accept
   int min_regions_with_evidence = 3;  // ... when the image check (EdgeEvidence) passes too
   double min_inlier_ratio = 0.3;      // consistent / regions mapped into the overlap
