@@ -1,0 +1,428 @@
+// Aerial photo <-> LiDAR registration (thesis ch. 7): depth and photo
+// segmentation, shape-context registration, synthetic cities. The high-level
+// register_aerial() follows `mvkp register` (apps/mvkp/cmd_aerial.cc RunRegister).
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include <opencv2/imgproc.hpp>
+
+#include "common.h"
+#include "mvkp/buildings/depth_regions.h"
+#include "mvkp/city/synth_city.h"
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+#include "mvkp/geo/raster.h"
+#include "mvkp/ortho/optical_regions.h"
+#include "mvkp/ortho/ortho_models.h"
+#include "mvkp/shapes/register.h"
+#if __has_include("mvkp/shapes/edge_evidence.h")
+#include "mvkp/shapes/edge_evidence.h"
+#define MVKP_PY_EDGE_EVIDENCE 1
+#endif
+
+namespace mvkp::py_bindings {
+
+namespace {
+
+py::array_t<std::int32_t> IntContour(const std::vector<cv::Point>& c) {
+  py::array_t<std::int32_t> a({py::ssize_t(c.size()), py::ssize_t(2)});
+  auto v = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    v(i, 0) = c[i].x;
+    v(i, 1) = c[i].y;
+  }
+  return a;
+}
+
+template <class P>
+py::array_t<float> FloatPoints(const std::vector<P>& c) {
+  py::array_t<float> a({py::ssize_t(c.size()), py::ssize_t(2)});
+  auto v = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    v(i, 0) = float(c[i].x);
+    v(i, 1) = float(c[i].y);
+  }
+  return a;
+}
+
+// A contour from an (n, 2) array, a BuildingRegion / PhotoRegion, or anything with .contour.
+Contour ToContour(py::handle obj, const std::string& what) {
+  if (obj.is_none()) throw py::type_error(what + ": expected an (n, 2) array of points, got None");
+  py::object o = py::reinterpret_borrow<py::object>(obj);
+  if (py::hasattr(o, "contour")) o = o.attr("contour");
+  auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(o);
+  if (!a) throw py::type_error(what + ": expected an (n, 2) array of points");
+  if (a.ndim() == 3 && a.shape(1) == 1) a = a.attr("reshape")(-1, 2);  // cv2.findContours layout
+  if (a.ndim() != 2 || a.shape(1) != 2) throw py::value_error(what + ": expected an (n, 2) array of points");
+  Contour c;
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) c.emplace_back(a.at(i, 0), a.at(i, 1));
+  return c;
+}
+
+std::vector<Contour> ToContours(py::handle seq, const char* what) {
+  if (seq.is_none()) throw py::type_error(std::string(what) + ": expected a list of (n, 2) point arrays, got None");
+  std::vector<Contour> out;
+  int i = 0;
+  for (auto c : py::reinterpret_borrow<py::iterable>(seq)) out.push_back(ToContour(c, std::string(what) + "[" + std::to_string(i++) + "]"));
+  return out;
+}
+
+py::array_t<int> RectTuple(const cv::Rect& r) {
+  py::array_t<int> a(4);
+  a.mutable_data()[0] = r.x; a.mutable_data()[1] = r.y; a.mutable_data()[2] = r.width; a.mutable_data()[3] = r.height;
+  return a;
+}
+
+// A registration and what register_aerial() adds to it.
+struct PyRegistration {
+  Registration reg;
+  std::vector<Contour> photo_regions, depth_regions;
+  py::dict time_ms;
+};
+
+}  // namespace
+
+void BindAerial(py::module_& m) {
+  // ---------------------------------------------------------------- options
+  py::class_<FbmModel>(m, "FbmModel", "fBm natural-texture model of the photo segmentation (invalid by default: fitted on the photo).")
+      .def(py::init<>())
+      .def_readwrite("k", &FbmModel::k)
+      .def_readwrite("H", &FbmModel::H)
+      .def_readwrite("ofe", &FbmModel::ofe)
+      .def_readwrite("window", &FbmModel::window)
+      .def_property_readonly("valid", &FbmModel::Valid)
+      .def("__repr__", [](const FbmModel& f) {
+        return "FbmModel(k=" + std::to_string(f.k) + ", H=" + std::to_string(f.H) + ", ofe=" + std::to_string(f.ofe) +
+               ", window=" + std::to_string(f.window) + ")";
+      });
+  m.def("load_fbm_model", &LoadFbmModel, py::arg("path"), "An fBm model file from `mvkp ortho-models fit-fbm`.");
+  py::class_<RegionLda>(m, "RegionLda", "Region-regulation LDA (invalid by default: the built-in one is used).")
+      .def(py::init<>())
+      .def_readwrite("w", &RegionLda::w)
+      .def_readwrite("b", &RegionLda::b)
+      .def_property_readonly("valid", &RegionLda::Valid)
+      .def("__repr__", [](const RegionLda& l) { return std::string("RegionLda(") + (l.Valid() ? "valid" : "invalid: built-in") + ")"; });
+  m.def("load_region_lda", &LoadRegionLda, py::arg("path"), "A region LDA file from `mvkp ortho-models train-lda`.");
+  m.def("default_region_lda", &DefaultRegionLda, "The built-in region LDA.");
+
+  py::class_<DepthSegmentOptions> dso(m, "DepthSegmentOptions", "mvkp::DepthSegmentOptions: building regions of a LiDAR depth image.");
+  dso
+#include "fields/DepthSegmentOptions.inc"
+      ;
+  AddOptionsMethods(dso);
+  dso.def("check", &DepthSegmentOptions::Check);
+
+  py::class_<OpticalSegmentOptions> oso(m, "OpticalSegmentOptions", "mvkp::OpticalSegmentOptions: roof regions of a nadir aerial photo.");
+  oso
+#include "fields/OpticalSegmentOptions.inc"
+      ;
+  AddOptionsMethods(oso);
+  oso.def("check", &OpticalSegmentOptions::Check);
+
+  py::class_<ShapeContextOptions> sco(m, "ShapeContextOptions", "mvkp::ShapeContextOptions: region shape descriptors.");
+  sco
+#include "fields/ShapeContextOptions.inc"
+      ;
+  AddOptionsMethods(sco);
+
+  py::class_<RegistrationOptions> rgo(m, "RegistrationOptions", "mvkp::RegistrationOptions: photo <-> depth registration by region shapes.");
+  BindEnum<RegistrationOptions::Model>(rgo, "Model", {{"similarity", RegistrationOptions::Model::kSimilarity}, {"affine", RegistrationOptions::Model::kAffine}, {"perspective", RegistrationOptions::Model::kPerspective}, {"auto", RegistrationOptions::Model::kAuto}}, "Global transform model.");
+  rgo
+#include "fields/RegistrationOptions.inc"
+      ;
+  AddOptionsMethods(rgo);
+  rgo.def("check", &RegistrationOptions::Check);
+
+#ifdef MVKP_PY_EDGE_EVIDENCE
+  py::class_<EdgeEvidenceOptions> eeo(m, "EdgeEvidenceOptions",
+                                      "mvkp::EdgeEvidenceOptions: the image check of a registration (depth outlines on photo edges).");
+  eeo
+#include "fields/EdgeEvidenceOptions.inc"
+      ;
+  AddOptionsMethods(eeo);
+  eeo.def("check", &EdgeEvidenceOptions::Check);
+#endif
+
+  py::class_<CityOptions> cio(m, "CityOptions", "mvkp::CityOptions: a synthetic city (depth + aerial photo + ground truth).");
+  cio
+#include "fields/CityOptions.inc"
+      ;
+  AddOptionsMethods(cio);
+  cio.def("check", &CityOptions::Check);
+
+  py::class_<geo::LasRasterOptions> lro(m, "LasRasterOptions", "mvkp::geo::LasRasterOptions: rasterising a LAS point cloud.");
+  lro
+#include "fields/LasRasterOptions.inc"
+      ;
+  AddOptionsMethods(lro);
+  py::class_<geo::DepthReadOptions> dro(m, "DepthReadOptions", "mvkp::geo::DepthReadOptions: reading a depth raster.");
+  dro
+#include "fields/DepthReadOptions.inc"
+      ;
+  AddOptionsMethods(dro);
+
+  // ---------------------------------------------------------------- results
+  py::class_<BuildingRegion>(m, "BuildingRegion", "A building region of a depth image.")
+      .def_property_readonly("contour", [](const BuildingRegion& r) { return IntContour(r.contour); }, "(n, 2) int32 outer contour, depth px.")
+      .def_property_readonly("bbox", [](const BuildingRegion& r) { return RectTuple(r.bbox); }, "(x, y, width, height).")
+      .def_readonly("area", &BuildingRegion::area)
+      .def_readonly("height", &BuildingRegion::height, "Median height above local ground, metres.")
+      .def("__repr__", [](const BuildingRegion& r) {
+        return "BuildingRegion(area=" + std::to_string(int(r.area)) + ", height=" + std::to_string(r.height) + ")";
+      });
+  py::class_<PhotoRegion>(m, "PhotoRegion", "A roof region of an aerial photo.")
+      .def_property_readonly("contour", [](const PhotoRegion& r) { return IntContour(r.contour); }, "(n, 2) int32 outer contour, photo px.")
+      .def_property_readonly("bbox", [](const PhotoRegion& r) { return RectTuple(r.bbox); }, "(x, y, width, height).")
+      .def_readonly("area", &PhotoRegion::area)
+      .def_readonly("confidence", &PhotoRegion::confidence)
+      .def_readonly("upp", &PhotoRegion::upp)
+      .def_readonly("lda_score", &PhotoRegion::lda_score)
+      .def_readonly("color_preference", &PhotoRegion::color_preference)
+      .def("__repr__", [](const PhotoRegion& r) {
+        return "PhotoRegion(area=" + std::to_string(int(r.area)) + ", confidence=" + std::to_string(r.confidence) + ")";
+      });
+
+  py::class_<PyRegistration, std::shared_ptr<PyRegistration>>(m, "Registration", "An aerial photo registered onto a depth image.")
+      .def_property_readonly("ok", [](const PyRegistration& r) { return r.reg.ok; })
+      .def_property_readonly("reason", [](const PyRegistration& r) { return r.reg.reason; })
+      .def_property_readonly("model", [](const PyRegistration& r) -> py::object {
+        if (!r.reg.ok) return py::none();
+        return py::str(r.reg.model);
+      }, "'similarity' | 'affine' | 'perspective', None when not registered.")
+      .def_property_readonly("homography", [](const PyRegistration& r) -> py::object {
+        if (!r.reg.ok) return py::none();
+        return Matx33ToArray(r.reg.photo_to_depth);
+      }, "3x3 float64 photo -> depth pixels, None when not registered.")
+      .def_property_readonly("correspondences", [](const PyRegistration& r) {
+        py::array_t<float> a({py::ssize_t(r.reg.correspondences.size()), py::ssize_t(4)});
+        auto v = a.mutable_unchecked<2>();
+        for (std::size_t i = 0; i < r.reg.correspondences.size(); ++i) {
+          const auto& [p, q] = r.reg.correspondences[i];
+          v(i, 0) = p.x; v(i, 1) = p.y; v(i, 2) = q.x; v(i, 3) = q.y;
+        }
+        return a;
+      }, "(n, 4) float32: photo x, y -> depth x, y.")
+      .def_property_readonly("region_matches", [](const PyRegistration& r) {
+        py::list l;
+        for (const auto& x : r.reg.region_matches) {
+          py::dict d;
+          d["photo"] = x.a; d["depth"] = x.b; d["cost"] = x.cost; d["cost_ratio"] = x.cost_ratio; d["shift"] = x.shift;
+          l.append(d);
+        }
+        return l;
+      }, "Accepted region pairs: dicts of photo / depth region index, cost, cost_ratio, shift.")
+      .def_property_readonly("rms_px", [](const PyRegistration& r) { return r.reg.rms_px; })
+#ifdef MVKP_PY_EDGE_EVIDENCE
+      .def_property_readonly("edge", [](const PyRegistration& r) -> py::object {
+        if (!r.reg.edge.enough) return py::none();
+        py::dict d;
+        d["points"] = r.reg.edge.points;
+        d["on"] = r.reg.edge.on;
+        d["off"] = r.reg.edge.off;
+        d["contrast"] = r.reg.edge.contrast;
+        return d;
+      }, "Image evidence of the result (outline samples, gradient on / beside the outlines, contrast); None when too few samples.")
+#endif
+      .def_property_readonly("hypotheses", [](const PyRegistration& r) { return r.reg.hypotheses; })
+      .def_property_readonly("photo_regions", [](const PyRegistration& r) {
+        py::list l;
+        for (const auto& c : r.photo_regions) l.append(FloatPoints(c));
+        return l;
+      }, "Photo region contours used (photo px; (n, 2) float32 each).")
+      .def_property_readonly("depth_regions", [](const PyRegistration& r) {
+        py::list l;
+        for (const auto& c : r.depth_regions) l.append(FloatPoints(c));
+        return l;
+      }, "Depth region contours used (depth px).")
+      .def_readonly("time_ms", &PyRegistration::time_ms)
+      .def("__bool__", [](const PyRegistration& r) { return r.reg.ok; })
+      .def("__repr__", [](const PyRegistration& r) {
+        if (!r.reg.ok) return "Registration(ok=False, reason='" + r.reg.reason + "')";
+        return "Registration(ok=True, model='" + r.reg.model + "', region_matches=" + std::to_string(r.reg.region_matches.size()) +
+               ", rms_px=" + std::to_string(r.reg.rms_px) + ")";
+      });
+
+  // ---------------------------------------------------------------- functions
+  m.def(
+      "segment_depth",
+      [](py::handle depth, py::handle options, py::kwargs kw) {
+        const DepthSegmentOptions o = MakeOptions<DepthSegmentOptions>(options, kw, "segment_depth");
+        ImageArg z = ToFloatImage(depth, "depth");
+        py::gil_scoped_release release;
+        return SegmentDepth(cv::Mat1f(z.mat), o);
+      },
+      py::arg("depth"), py::arg("options") = py::none(),
+      "Building regions of a depth image ((H, W) float32 metres, NaN = no data), largest first. Keyword arguments "
+      "are DepthSegmentOptions fields.");
+  m.def(
+      "segment_optical",
+      [](py::handle photo, py::handle options, py::kwargs kw) {
+        const OpticalSegmentOptions o = MakeOptions<OpticalSegmentOptions>(options, kw, "segment_optical");
+        ImageArg img = ToImage(photo, "photo", ImageKind::kGrayOrBgr);
+        py::gil_scoped_release release;
+        return SegmentOptical(img.mat, o);
+      },
+      py::arg("photo"), py::arg("options") = py::none(),
+      "Roof regions of a nadir aerial photo (HxWx3 BGR uint8), best first. Keyword arguments are "
+      "OpticalSegmentOptions fields.");
+  m.def(
+      "register_contours",
+      [](py::handle photo_regions, py::handle depth_regions, py::handle options, py::kwargs kw) {
+        const RegistrationOptions o = MakeOptions<RegistrationOptions>(options, kw, "register_contours");
+        o.Check();
+        auto out = std::make_shared<PyRegistration>();
+        out->photo_regions = ToContours(photo_regions, "photo_regions");
+        out->depth_regions = ToContours(depth_regions, "depth_regions");
+        {
+          py::gil_scoped_release release;
+          out->reg = RegisterContours(out->photo_regions, out->depth_regions, o);
+        }
+        out->time_ms["match"] = out->reg.match_ms;
+        out->time_ms["propagate"] = out->reg.propagate_ms;
+        return out;
+      },
+      py::arg("photo_regions"), py::arg("depth_regions"), py::arg("options") = py::none(),
+      "Registers photo region contours onto depth region contours (lists of (n, 2) arrays, or the regions "
+      "segment_optical / segment_depth return). Keyword arguments are RegistrationOptions fields.");
+  m.def(
+      "register_aerial",
+      [](py::handle depth, py::handle photo, int photo_max_side, py::handle depth_options, py::handle optical_options,
+         py::handle edge_options, py::handle options, py::kwargs kw) {
+        const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
+        ro.Check();
+        const DepthSegmentOptions dso = MakeOptions<DepthSegmentOptions>(depth_options, py::dict(), "register_aerial");
+        const OpticalSegmentOptions oso = MakeOptions<OpticalSegmentOptions>(optical_options, py::dict(), "register_aerial");
+        if (photo_max_side < 0) throw py::value_error("photo_max_side must be >= 0");
+#ifdef MVKP_PY_EDGE_EVIDENCE
+        const EdgeEvidenceOptions eo = MakeOptions<EdgeEvidenceOptions>(edge_options, py::dict(), "register_aerial");
+        eo.Check();
+#else
+        if (!edge_options.is_none()) throw py::value_error("register_aerial(): edge_options: this build has no image evidence");
+#endif
+        ImageArg z = ToFloatImage(depth, "depth");
+        ImageArg img = ToImage(photo, "photo", ImageKind::kBgr);
+        auto out = std::make_shared<PyRegistration>();
+        double depth_ms = 0, photo_ms = 0, total_ms = 0;
+        {
+          py::gil_scoped_release release;
+          Timer total;
+          Timer td;
+          const std::vector<BuildingRegion> dregions = SegmentDepth(cv::Mat1f(z.mat), dso);
+          depth_ms = td.ElapsedMs();
+          // As `mvkp register`: a photo much larger than needed is segmented at
+          // photo_max_side and its contours scaled back.
+          Timer tp;
+          cv::Mat work = img.mat;
+          double f = 1.0;
+          if (photo_max_side > 0 && std::max(work.cols, work.rows) > photo_max_side) {
+            f = double(photo_max_side) / std::max(work.cols, work.rows);
+            cv::resize(img.mat, work, cv::Size(), f, f, cv::INTER_AREA);
+          }
+          const std::vector<PhotoRegion> pregions = SegmentOptical(work, oso);
+#ifdef MVKP_PY_EDGE_EVIDENCE
+          cv::Mat grey;
+          if (eo.min_contrast > 0) {
+            if (work.channels() == 3) cv::cvtColor(work, grey, cv::COLOR_BGR2GRAY);
+            else grey = work;
+          }
+#endif
+          photo_ms = tp.ElapsedMs();
+          for (const auto& r : dregions) out->depth_regions.emplace_back(r.contour.begin(), r.contour.end());
+          for (const auto& r : pregions) {
+            Contour c;
+            for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / f - 0.5), float((p.y + 0.5) / f - 0.5));
+            out->photo_regions.push_back(std::move(c));
+          }
+#ifdef MVKP_PY_EDGE_EVIDENCE
+          std::optional<EdgeEvidence> evidence;
+          if (!grey.empty()) evidence.emplace(grey, f, out->depth_regions, eo);
+          grey.release();
+          out->reg = RegisterContours(out->photo_regions, out->depth_regions, ro, evidence ? &*evidence : nullptr);
+#else
+          out->reg = RegisterContours(out->photo_regions, out->depth_regions, ro);
+#endif
+          total_ms = total.ElapsedMs();
+        }
+        out->time_ms["segment_depth"] = depth_ms;
+        out->time_ms["segment_photo"] = photo_ms;
+        out->time_ms["match"] = out->reg.match_ms;
+        out->time_ms["propagate"] = out->reg.propagate_ms;
+        out->time_ms["total"] = total_ms;
+        return out;
+      },
+      py::arg("depth"), py::arg("photo"), py::kw_only(), py::arg("photo_max_side") = 1200,
+      py::arg("depth_options") = py::none(), py::arg("optical_options") = py::none(), py::arg("edge_options") = py::none(),
+      py::arg("options") = py::none(),
+      "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
+      "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
+      "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
+      "(model='auto', min_regions=4, seed=1, ...); depth_options / optical_options are DepthSegmentOptions / "
+      "OpticalSegmentOptions.");
+
+  m.def(
+      "read_depth",
+      [](const std::string& path, py::handle options, py::kwargs kw) {
+        const geo::DepthReadOptions o = MakeOptions<geo::DepthReadOptions>(options, kw, "read_depth");
+        geo::DepthRaster d;
+        {
+          py::gil_scoped_release release;
+          d = geo::ReadDepthRaster(path, o);
+        }
+        return py::make_tuple(MatToArray(d.z), d.res_m);
+      },
+      py::arg("path"), py::arg("options") = py::none(),
+      "Reads a GeoTIFF DSM/nDSM or LAS file: (heights (H, W) float32 metres with NaN = no data, res_m).");
+  m.def(
+      "read_optical",
+      [](const std::string& path) {
+        geo::OpticalImage o;
+        {
+          py::gil_scoped_release release;
+          o = geo::ReadOpticalImage(path);
+        }
+        return MatToArray(o.bgr);
+      },
+      py::arg("path"), "Reads an aerial image (PNG/JPEG/TIFF/GeoTIFF, ...) as HxWx3 BGR uint8.");
+
+  // ---------------------------------------------------------------- synthetic city
+  py::class_<City, std::shared_ptr<City>>(m, "City", "A synthetic city: depth raster, aerial photo and ground truth.")
+      .def_property_readonly("depth", [](py::object self) { return ViewOf(self.cast<const City&>().depth, self); },
+                             "(H, W) float32 DSM, metres; NaN = no return (read-only view).")
+      .def_property_readonly("photo", [](py::object self) { return ViewOf(self.cast<const City&>().photo, self); },
+                             "HxWx3 uint8 BGR aerial photo (read-only view).")
+      .def_property_readonly("photo_to_depth", [](const City& c) { return Matx33ToArray(c.photo_to_depth); },
+                             "Ground truth 3x3 float64 photo -> depth pixels.")
+      .def_property_readonly("footprints", [](const City& c) {
+        py::list l;
+        for (const auto& f : c.footprints) l.append(FloatPoints(f));
+        return l;
+      }, "Building outlines in depth pixels.")
+      .def_readonly("heights_m", &City::heights_m)
+      .def_readonly("shapes", &City::shapes)
+      .def_readonly("scale", &City::scale)
+      .def_readonly("rotation_deg", &City::rotation_deg)
+      .def_readonly("photo_overlap", &City::photo_overlap)
+      .def_readonly("depth_overlap", &City::depth_overlap)
+      .def_readonly("seed", &City::seed)
+      .def("save", [](const City& c, const std::string& dir, const std::string& stem) { SaveCity(c, dir, stem); },
+           py::arg("dir"), py::arg("stem") = "", "Writes depth.tif, photo.png, truth.json, ... into dir (as `mvkp synth-city`).")
+      .def("__repr__", [](const City& c) {
+        return "City(depth " + std::to_string(c.depth.cols) + "x" + std::to_string(c.depth.rows) + ", photo " +
+               std::to_string(c.photo.cols) + "x" + std::to_string(c.photo.rows) + ", " + std::to_string(c.footprints.size()) +
+               " buildings, seed=" + std::to_string(c.seed) + ")";
+      });
+  m.def(
+      "make_city",
+      [](std::uint64_t seed, py::handle options, py::kwargs kw) {
+        const CityOptions o = MakeOptions<CityOptions>(options, kw, "make_city");
+        o.Check();
+        py::gil_scoped_release release;
+        return std::make_shared<City>(MakeCity(o, seed));
+      },
+      py::arg("seed"), py::arg("options") = py::none(),
+      "A synthetic city reproducible from (options, seed). Keyword arguments are CityOptions fields (width=1000, "
+      "height=1000, buildings=30, ...).");
+}
+
+}  // namespace mvkp::py_bindings

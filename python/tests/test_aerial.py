@@ -1,0 +1,70 @@
+"""Aerial registration on a small synthetic city (bindings, not accuracy: see the C++ tests)."""
+import numpy as np
+import pytest
+
+import mvkp
+
+pytestmark = pytest.mark.skipif(not mvkp.HAS_AERIAL, reason="built without the aerial components")
+
+
+@pytest.fixture(scope="module")
+def city():
+    # A scene `mvkp register` registers (1.3 px) as the aerial code stands; the
+    # test accepts "no registration found" too: it tests the binding, not the method.
+    return mvkp.make_city(6, width=500, height=500, buildings=20, min_scale=0.7, max_scale=1.4,
+                          max_perspective=0.0, photo_max_side=800)
+
+
+def test_city(city):
+    assert city.depth.dtype == np.float32 and city.depth.shape == (500, 500)
+    assert city.photo.dtype == np.uint8 and city.photo.ndim == 3
+    assert city.photo_to_depth.shape == (3, 3)
+    assert len(city.footprints) > 0 and "City(" in repr(city)
+
+
+def test_segment_and_register(city):
+    depth_regions = mvkp.segment_depth(city.depth)
+    assert depth_regions and depth_regions[0].contour.shape[1] == 2
+    photo_regions = mvkp.segment_optical(city.photo)
+    assert isinstance(photo_regions, list)
+    r = mvkp.register_contours(photo_regions, depth_regions, seed=1)
+    assert isinstance(r.ok, bool) and isinstance(r.reason, str)
+    r2 = mvkp.register_aerial(city.depth, city.photo, model="auto")
+    assert r2.time_ms["total"] > 0 and len(r2.depth_regions) == len(depth_regions)
+    if r2.ok:
+        h, w = city.photo.shape[:2]
+        assert r2.homography.shape == (3, 3)
+        assert mvkp.mean_corner_error(r2.homography, city.photo_to_depth, w, h) < 5.0
+        assert r2.correspondences.shape[1] == 4 and r2.region_matches
+    else:
+        assert r2.homography is None and r2.reason.startswith("no registration found")
+
+
+def test_aerial_bad_input(city):
+    with pytest.raises(ValueError, match="float32"):
+        mvkp.segment_depth(city.photo)
+    with pytest.raises(TypeError):
+        mvkp.register_aerial(None, city.photo)
+    with pytest.raises(ValueError, match="4-channel"):
+        mvkp.register_aerial(city.depth, np.zeros((50, 50, 4), np.uint8))
+    with pytest.raises(ValueError, match="unknown Model"):
+        mvkp.register_aerial(city.depth, city.photo, model="projective")
+
+
+@pytest.mark.skipif(not __import__("os").environ.get("MVKP_CLI"), reason="MVKP_CLI not set")
+def test_register_aerial_equals_cli(city, tmp_path):
+    import json
+    import os
+    import subprocess
+
+    city.save(str(tmp_path))
+    depth, res_m = mvkp.read_depth(str(tmp_path / "depth.tif"))
+    photo = mvkp.read_optical(str(tmp_path / "photo.png"))
+    r = mvkp.register_aerial(depth, photo)
+    out = subprocess.run([os.environ["MVKP_CLI"], "register", str(tmp_path / "depth.tif"), str(tmp_path / "photo.png"),
+                          "--json"], capture_output=True, text=True, timeout=120, check=True)
+    j = json.loads(out.stdout)
+    assert j["ok"] == r.ok and j["reason"] == r.reason
+    if r.ok:
+        assert j["model"] == r.model
+        np.testing.assert_allclose(np.array(j["homography"]), r.homography, rtol=1e-9, atol=1e-9)
