@@ -4,7 +4,7 @@ PREFIX ?= /usr/local
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure build test demo install uninstall clean loadtest serve-latency
+.PHONY: all deps configure build test demo install uninstall deb docs clean loadtest serve-latency
 
 all: build
 
@@ -25,11 +25,25 @@ test: build
 demo: build
 	@bash scripts/demo.sh $(BUILD)/mvkp
 
+# Library, headers, CMake package, pkg-config file, CLI and Python module under
+# PREFIX; `make uninstall` removes what the last install wrote (its manifest).
 install: build
 	cmake --install $(BUILD) --prefix $(PREFIX)
 
 uninstall:
-	@if [ -f $(BUILD)/install_manifest.txt ]; then xargs rm -fv < $(BUILD)/install_manifest.txt; else echo "nothing installed from $(BUILD)"; fi
+	@bash scripts/uninstall.sh $(BUILD)/install_manifest.txt
+
+# Debian packages (CPack): libmvkp-dev, mvkp (CLI + server), python3-mvkp,
+# written to $(BUILD)/packages/.
+deb: build
+	rm -rf $(BUILD)/packages
+	cd $(BUILD) && cpack -G DEB -B "$$(pwd)/packages"
+	rm -rf $(BUILD)/packages/_CPack_Packages
+	@for f in $(BUILD)/packages/*.deb; do echo "$$f: $$(dpkg-deb -f $$f Depends)"; done
+
+# API reference (Doxygen) of the public headers: $(BUILD)/docs/html/index.html.
+docs: configure
+	cmake --build $(BUILD) --target docs
 
 clean:
 	rm -rf $(BUILD)

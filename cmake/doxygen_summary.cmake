@@ -1,0 +1,30 @@
+# cmake -DLOG=<doxygen warning log> -DHTML=<html dir> [-DDOXYGEN=<doxygen> -DDOXYFILE=<Doxyfile>]
+#       [-DMAX_WARNINGS=N] -P doxygen_summary.cmake
+# With DOXYGEN: runs it first (CTest `api_docs`). Then one line: where the HTML
+# is and how many warnings Doxygen gave. Warnings are reported, not fatal,
+# unless there are more than MAX_WARNINGS (when given).
+if(DOXYGEN)
+  execute_process(COMMAND "${DOXYGEN}" "${DOXYFILE}" RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "docs: doxygen failed (${rc})")
+  endif()
+endif()
+set(n 0)
+if(EXISTS "${LOG}")
+  file(STRINGS "${LOG}" lines REGEX "warning:")
+  list(LENGTH lines n)
+endif()
+if(NOT EXISTS "${HTML}/index.html")
+  message(FATAL_ERROR "docs: ${HTML}/index.html was not written (see ${LOG})")
+endif()
+if(n GREATER 0)
+  message(STATUS "docs: ${HTML}/index.html (${n} Doxygen warnings: ${LOG})")
+  foreach(l IN LISTS lines)
+    message(STATUS "  ${l}")
+  endforeach()
+else()
+  message(STATUS "docs: ${HTML}/index.html (no Doxygen warnings)")
+endif()
+if(DEFINED MAX_WARNINGS AND n GREATER MAX_WARNINGS)
+  message(FATAL_ERROR "docs: ${n} Doxygen warnings, more than ${MAX_WARNINGS}")
+endif()
