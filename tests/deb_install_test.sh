@@ -36,19 +36,8 @@ cleanup() {
   rm -rf "$TMP"
 }
 trap cleanup EXIT
-start=$SECONDS
-passed=0
-failed=0
-ok() { echo "ok: $*"; passed=$((passed + 1)); }
-fail() { echo "FAIL: $*"; failed=$((failed + 1)); }
-skip() { echo "skip: $*"; }
-finish() {
-  echo "runtime: $((SECONDS - start)) s"
-  echo "$passed passed, $failed failed"
-  [[ $failed -eq 0 ]] || exit 1
-  exit 0
-}
-tail_of() { tail -n "${2:-5}" "$1" | tr '\n' '|' | head -c 800; }
+# shellcheck source=check_lib.sh
+source "$(dirname "${BASH_SOURCE[0]}")/check_lib.sh"
 
 for tool in cpack dpkg-deb dpkg-shlibdeps fakeroot pkg-config; do
   command -v "$tool" >/dev/null || { fail "$tool not found (scripts/install-deps.sh installs dpkg-dev, fakeroot)"; finish; }

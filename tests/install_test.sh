@@ -28,20 +28,8 @@ cleanup() {
   rm -rf "$TMP"
 }
 trap cleanup EXIT
-start=$SECONDS
-passed=0
-failed=0
-
-ok() { echo "ok: $*"; passed=$((passed + 1)); }
-fail() { echo "FAIL: $*"; failed=$((failed + 1)); }
-finish() {
-  echo "runtime: $((SECONDS - start)) s"
-  echo "$passed passed, $failed failed"
-  [[ $failed -eq 0 ]] || exit 1
-  exit 0
-}
-# Last lines of a log, on one line.
-tail_of() { tail -n "${2:-5}" "$1" | tr '\n' '|' | head -c 600; }
+# shellcheck source=check_lib.sh
+source "$(dirname "${BASH_SOURCE[0]}")/check_lib.sh"
 
 # --- 0. the build is complete ---------------------------------------------------
 

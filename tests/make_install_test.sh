@@ -23,19 +23,8 @@ cleanup() {
   rm -rf "$TMP"
 }
 trap cleanup EXIT
-start=$SECONDS
-passed=0
-failed=0
-ok() { echo "ok: $*"; passed=$((passed + 1)); }
-fail() { echo "FAIL: $*"; failed=$((failed + 1)); }
-skip() { echo "skip: $*"; }
-finish() {
-  echo "runtime: $((SECONDS - start)) s"
-  echo "$passed passed, $failed failed"
-  [[ $failed -eq 0 ]] || exit 1
-  exit 0
-}
-tail_of() { tail -n "${2:-5}" "$1" | tr '\n' '|' | head -c 800; }
+# shellcheck source=check_lib.sh
+source "$(dirname "${BASH_SOURCE[0]}")/check_lib.sh"
 python_wanted=0
 [[ ${PYTHON_MODULE:-OFF} =~ ^(ON|On|on|1|TRUE|True|true|YES|yes)$ ]] && python_wanted=1
 
