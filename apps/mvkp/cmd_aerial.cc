@@ -23,6 +23,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "commands.h"
+#include "mvkp/aerial/aerial.h"
 #include "mvkp/buildings/depth_regions.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
@@ -197,41 +198,20 @@ int RunRegister(RegisterArgs& a) {
     const geo::DepthRaster d = LoadDepth(a.depth, a.res_m);
     geo::OpticalImage img = geo::ReadOpticalImage(a.optical);
     const double read_ms = total.ElapsedMs();
-    Timer td;
-    const std::vector<BuildingRegion> dregions = SegmentDepth(d.z);
-    const double depth_ms = td.ElapsedMs();
-    Timer tp;
-    // A photo much larger than needed is segmented at --photo-max-side and
-    // its contours scaled back: roofs stay tens of pixels wide, and memory
-    // and time follow the smaller image.
-    cv::Mat work = img.bgr;
-    double f = 1.0;
-    if (a.photo_max_side > 0 && std::max(work.cols, work.rows) > a.photo_max_side) {
-      f = double(a.photo_max_side) / std::max(work.cols, work.rows);
-      cv::resize(img.bgr, work, cv::Size(), f, f, cv::INTER_AREA);
-    }
+    AerialOptions ao;
+    ao.photo_max_side = a.photo_max_side;
+    ao.registration = a.opt;
+    ao.edge = a.edge;
+    ao.image_check = a.edge.min_contrast > 0;
+    if (!ao.image_check) ao.edge.min_contrast = EdgeEvidenceOptions{}.min_contrast;
+    LoadOrthoModels(a.fbm, a.lda, ao.optical);
     const cv::Size photo_size = img.bgr.size();
-    if (a.draw.empty()) img.bgr.release();  // the full-size photo is only drawn on
-    OpticalSegmentOptions oo;
-    LoadOrthoModels(a.fbm, a.lda, oo);
-    const std::vector<PhotoRegion> pregions = SegmentOptical(work, oo);
-    cv::Mat grey;
-    if (a.edge.min_contrast > 0) cv::cvtColor(work, grey, cv::COLOR_BGR2GRAY);
-    work.release();
-    const double photo_ms = tp.ElapsedMs();
-    std::vector<std::vector<cv::Point>> dc;
-    for (const auto& r : dregions) dc.push_back(r.contour);
-    const std::vector<Contour> dcont = ToContours(dc);
-    std::vector<Contour> pcont;
-    for (const auto& r : pregions) {
-      Contour c;
-      for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / f - 0.5), float((p.y + 0.5) / f - 0.5));
-      pcont.push_back(std::move(c));
-    }
-    std::optional<EdgeEvidence> evidence;
-    if (!grey.empty()) evidence.emplace(grey, f, dcont, a.edge);
-    grey.release();
-    const Registration reg = RegisterContours(pcont, dcont, a.opt, evidence ? &*evidence : nullptr);
+    // without a drawing the full-size photo is not needed once downscaled
+    const AerialRegistration ar = RegisterAerial(d.z, a.draw.empty() ? std::move(img.bgr) : img.bgr, ao);
+    const Registration& reg = ar.registration;
+    const std::vector<Contour>& pcont = ar.photo_regions;
+    const std::vector<Contour>& dcont = ar.depth_regions;
+    const double depth_ms = ar.segment_depth_ms, photo_ms = ar.segment_photo_ms;
     const double total_ms = total.ElapsedMs();
 
     Json out;
@@ -246,9 +226,9 @@ int RunRegister(RegisterArgs& a) {
     } else {
       out["homography"] = nullptr;
     }
-    out["keypoints1"] = pregions.size();
-    out["keypoints2"] = dregions.size();
-    out["regions"] = {{"photo", pregions.size()}, {"depth", dregions.size()}};
+    out["keypoints1"] = pcont.size();
+    out["keypoints2"] = dcont.size();
+    out["regions"] = {{"photo", pcont.size()}, {"depth", dcont.size()}};
     Json matches = Json::array();
     for (const auto& [p, q] : reg.correspondences) matches.push_back({p.x, p.y, q.x, q.y, 0.0, 1});
     out["matches"] = matches;
@@ -278,7 +258,7 @@ int RunRegister(RegisterArgs& a) {
       std::printf("registered (%s): %zu region pairs, RMS %.2f px, %.0f ms\n", reg.model.c_str(), reg.region_matches.size(),
                   reg.rms_px, total_ms);
     } else {
-      std::printf("%s (%zu photo / %zu depth regions, %.0f ms)\n", reg.reason.c_str(), pregions.size(), dregions.size(),
+      std::printf("%s (%zu photo / %zu depth regions, %.0f ms)\n", reg.reason.c_str(), pcont.size(), dcont.size(),
                   total_ms);
     }
     return 0;  // "no registration found" is an answer, not an error

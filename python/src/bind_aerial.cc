@@ -1,6 +1,6 @@
 // Aerial photo <-> LiDAR registration (thesis ch. 7): depth and photo
 // segmentation, shape-context registration, synthetic cities. The high-level
-// register_aerial() follows `mvkp register` (apps/mvkp/cmd_aerial.cc RunRegister).
+// register_aerial() runs RegisterAerial (src/mvkp/aerial), the pipeline of `mvkp register`.
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common.h"
+#include "mvkp/aerial/aerial.h"
 #include "mvkp/buildings/depth_regions.h"
 #include "mvkp/city/synth_city.h"
 #include "mvkp/core/error.h"
@@ -16,10 +17,7 @@
 #include "mvkp/ortho/optical_regions.h"
 #include "mvkp/ortho/ortho_models.h"
 #include "mvkp/shapes/register.h"
-#if __has_include("mvkp/shapes/edge_evidence.h")
 #include "mvkp/shapes/edge_evidence.h"
-#define MVKP_PY_EDGE_EVIDENCE 1
-#endif
 
 namespace mvkp::py_bindings {
 
@@ -134,7 +132,6 @@ void BindAerial(py::module_& m) {
   AddOptionsMethods(rgo);
   rgo.def("check", &RegistrationOptions::Check);
 
-#ifdef MVKP_PY_EDGE_EVIDENCE
   py::class_<EdgeEvidenceOptions> eeo(m, "EdgeEvidenceOptions",
                                       "mvkp::EdgeEvidenceOptions: the image check of a registration (depth outlines on photo edges).");
   eeo
@@ -142,7 +139,6 @@ void BindAerial(py::module_& m) {
       ;
   AddOptionsMethods(eeo);
   eeo.def("check", &EdgeEvidenceOptions::Check);
-#endif
 
   py::class_<CityOptions> cio(m, "CityOptions", "mvkp::CityOptions: a synthetic city (depth + aerial photo + ground truth).");
   cio
@@ -213,7 +209,6 @@ void BindAerial(py::module_& m) {
         return l;
       }, "Accepted region pairs: dicts of photo / depth region index, cost, cost_ratio, shift.")
       .def_property_readonly("rms_px", [](const PyRegistration& r) { return r.reg.rms_px; })
-#ifdef MVKP_PY_EDGE_EVIDENCE
       .def_property_readonly("edge", [](const PyRegistration& r) -> py::object {
         if (!r.reg.edge.enough) return py::none();
         py::dict d;
@@ -223,7 +218,6 @@ void BindAerial(py::module_& m) {
         d["contrast"] = r.reg.edge.contrast;
         return d;
       }, "Image evidence of the result (outline samples, gradient on / beside the outlines, contrast); None when too few samples.")
-#endif
       .def_property_readonly("hypotheses", [](const PyRegistration& r) { return r.reg.hypotheses; })
       .def_property_readonly("photo_regions", [](const PyRegistration& r) {
         py::list l;
@@ -294,12 +288,8 @@ void BindAerial(py::module_& m) {
         const DepthSegmentOptions dso = MakeOptions<DepthSegmentOptions>(depth_options, py::dict(), "register_aerial");
         const OpticalSegmentOptions oso = MakeOptions<OpticalSegmentOptions>(optical_options, py::dict(), "register_aerial");
         if (photo_max_side < 0) throw py::value_error("photo_max_side must be >= 0");
-#ifdef MVKP_PY_EDGE_EVIDENCE
         const EdgeEvidenceOptions eo = MakeOptions<EdgeEvidenceOptions>(edge_options, py::dict(), "register_aerial");
         eo.Check();
-#else
-        if (!edge_options.is_none()) throw py::value_error("register_aerial(): edge_options: this build has no image evidence");
-#endif
         ImageArg z = ToFloatImage(depth, "depth");
         ImageArg img = ToImage(photo, "photo", ImageKind::kBgr);
         auto out = std::make_shared<PyRegistration>();
@@ -307,41 +297,18 @@ void BindAerial(py::module_& m) {
         {
           py::gil_scoped_release release;
           Timer total;
-          Timer td;
-          const std::vector<BuildingRegion> dregions = SegmentDepth(cv::Mat1f(z.mat), dso);
-          depth_ms = td.ElapsedMs();
-          // As `mvkp register`: a photo much larger than needed is segmented at
-          // photo_max_side and its contours scaled back.
-          Timer tp;
-          cv::Mat work = img.mat;
-          double f = 1.0;
-          if (photo_max_side > 0 && std::max(work.cols, work.rows) > photo_max_side) {
-            f = double(photo_max_side) / std::max(work.cols, work.rows);
-            cv::resize(img.mat, work, cv::Size(), f, f, cv::INTER_AREA);
-          }
-          const std::vector<PhotoRegion> pregions = SegmentOptical(work, oso);
-#ifdef MVKP_PY_EDGE_EVIDENCE
-          cv::Mat grey;
-          if (eo.min_contrast > 0) {
-            if (work.channels() == 3) cv::cvtColor(work, grey, cv::COLOR_BGR2GRAY);
-            else grey = work;
-          }
-#endif
-          photo_ms = tp.ElapsedMs();
-          for (const auto& r : dregions) out->depth_regions.emplace_back(r.contour.begin(), r.contour.end());
-          for (const auto& r : pregions) {
-            Contour c;
-            for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / f - 0.5), float((p.y + 0.5) / f - 0.5));
-            out->photo_regions.push_back(std::move(c));
-          }
-#ifdef MVKP_PY_EDGE_EVIDENCE
-          std::optional<EdgeEvidence> evidence;
-          if (!grey.empty()) evidence.emplace(grey, f, out->depth_regions, eo);
-          grey.release();
-          out->reg = RegisterContours(out->photo_regions, out->depth_regions, ro, evidence ? &*evidence : nullptr);
-#else
-          out->reg = RegisterContours(out->photo_regions, out->depth_regions, ro);
-#endif
+          AerialOptions ao;
+          ao.photo_max_side = photo_max_side;
+          ao.depth = dso;
+          ao.optical = oso;
+          ao.edge = eo;
+          ao.registration = ro;
+          AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
+          out->reg = std::move(ar.registration);
+          out->photo_regions = std::move(ar.photo_regions);
+          out->depth_regions = std::move(ar.depth_regions);
+          depth_ms = ar.segment_depth_ms;
+          photo_ms = ar.segment_photo_ms;
           total_ms = total.ElapsedMs();
         }
         out->time_ms["segment_depth"] = depth_ms;

@@ -1,0 +1,45 @@
+// Aerial photo -> LiDAR depth registration, end to end (issue 8; thesis ch. 7
+// stage 1): building regions of the depth image (buildings/), roof regions of
+// the photo (ortho/), shape matching and propagation with the image check
+// (shapes/). The one pipeline behind `mvkp register` and the Python
+// module's register_aerial().
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "mvkp/buildings/depth_regions.h"
+#include "mvkp/ortho/optical_regions.h"
+#include "mvkp/shapes/edge_evidence.h"
+#include "mvkp/shapes/register.h"
+
+namespace mvkp {
+
+struct AerialOptions {
+  int photo_max_side = 1200;  // larger photos are segmented downscaled to this side (0: never);
+                              //   roofs stay tens of pixels wide, memory and time follow the smaller image
+  bool image_check = true;    // EdgeEvidence (edge_evidence.h) on the photo and all depth outlines
+  DepthSegmentOptions depth;
+  OpticalSegmentOptions optical;
+  EdgeEvidenceOptions edge;
+  RegistrationOptions registration;
+  void Check() const;  // throws Error(kInvalidArgument)
+};
+
+struct AerialRegistration {
+  Registration registration;          // photo px (full size) -> depth px
+  std::vector<Contour> photo_regions;  // in full-size photo px
+  std::vector<Contour> depth_regions;  // depth px
+  std::vector<double> photo_region_confidence;  // per photo region (ortho's confidence)
+  double segment_depth_ms = 0, segment_photo_ms = 0;
+};
+
+// `depth`: heights in metres (NaN = no data). `photo`: 8-bit BGR or grey. The
+// photo is taken by value: pass it with std::move when the caller does not
+// need it any more, and the full-size pixels are freed once downscaled.
+// "No registration found" is a result (registration.ok false with a reason);
+// bad input throws Error.
+AerialRegistration RegisterAerial(const cv::Mat1f& depth, cv::Mat photo, const AerialOptions& options = {});
+
+}  // namespace mvkp

@@ -1,0 +1,106 @@
+#include "mvkp/aerial/aerial.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/city/synth_city.h"
+#include "mvkp/core/error.h"
+
+namespace mvkp {
+namespace {
+
+// Mean error of the ground-truth building corners seen in the photo.
+double CornerError(const City& c, const cv::Matx33d& H) {
+  const cv::Matx33d Hi = c.photo_to_depth.inv();
+  double sum = 0;
+  int n = 0;
+  for (const auto& fp : c.footprints)
+    for (const auto& q : fp) {
+      const cv::Point2f p = TransformPoints(Hi, {q})[0];
+      if (p.x < 0 || p.y < 0 || p.x > c.photo.cols - 1 || p.y > c.photo.rows - 1) continue;
+      sum += cv::norm(TransformPoints(H, {p})[0] - q);
+      ++n;
+    }
+  return n ? sum / n : 1e9;
+}
+
+TEST(Aerial, RegistersGeneratedScenesOrSaysNo) {
+  CityOptions o;
+  o.width = o.height = 600;
+  o.buildings = 24;
+  int good = 0;
+  for (std::uint64_t seed : {11u, 12u, 13u}) {
+    const City c = MakeCity(o, seed);
+    const AerialRegistration r = RegisterAerial(c.depth, c.photo);
+    EXPECT_FALSE(r.depth_regions.empty());
+    EXPECT_FALSE(r.photo_regions.empty());
+    EXPECT_EQ(r.photo_regions.size(), r.photo_region_confidence.size());
+    if (!r.registration.ok) {
+      EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
+      continue;
+    }
+    const double e = CornerError(c, r.registration.photo_to_depth);
+    EXPECT_LE(e, 5.0) << "seed " << seed << ": a wrong registration reported as success (" << r.registration.reason
+                      << ")";
+    good += e <= 5.0;
+  }
+  EXPECT_GE(good, 2);
+}
+
+// Photo contours come back in full-size photo px: a photo upscaled 2x
+// (nearest) and segmented at the original size gives the original regions, at
+// twice the coordinates (pixel centres at integers: x' = 2x + 0.5).
+TEST(Aerial, PhotoContoursInFullSizePixels) {
+  CityOptions o;
+  o.width = o.height = 500;
+  o.buildings = 16;
+  const City c = MakeCity(o, 21);
+  AerialOptions keep;
+  keep.photo_max_side = 0;
+  const AerialRegistration a = RegisterAerial(c.depth, c.photo, keep);
+  cv::Mat big;
+  cv::resize(c.photo, big, cv::Size(), 2, 2, cv::INTER_NEAREST);
+  AerialOptions down;
+  down.photo_max_side = std::max(c.photo.cols, c.photo.rows);
+  const AerialRegistration b = RegisterAerial(c.depth, big, down);
+  ASSERT_FALSE(a.photo_regions.empty());
+  ASSERT_EQ(a.photo_regions.size(), b.photo_regions.size());
+  for (size_t i = 0; i < a.photo_regions.size(); ++i) {
+    ASSERT_EQ(a.photo_regions[i].size(), b.photo_regions[i].size());
+    for (size_t j = 0; j < a.photo_regions[i].size(); ++j) {
+      EXPECT_NEAR(b.photo_regions[i][j].x, 2 * a.photo_regions[i][j].x + 0.5, 1e-3);
+      EXPECT_NEAR(b.photo_regions[i][j].y, 2 * a.photo_regions[i][j].y + 0.5, 1e-3);
+    }
+  }
+}
+
+TEST(Aerial, ImageCheckCanBeTurnedOff) {
+  CityOptions o;
+  o.width = o.height = 500;
+  o.buildings = 16;
+  const City c = MakeCity(o, 31);
+  AerialOptions off;
+  off.image_check = false;
+  const AerialRegistration r = RegisterAerial(c.depth, c.photo, off);
+  EXPECT_FALSE(r.registration.edge.enough);
+}
+
+TEST(Aerial, RejectsBadInput) {
+  const cv::Mat1f depth(100, 100, 0.f);
+  const cv::Mat3b photo(100, 100, cv::Vec3b(90, 90, 90));
+  EXPECT_THROW(RegisterAerial(cv::Mat1f(), photo), Error);
+  EXPECT_THROW(RegisterAerial(depth, cv::Mat()), Error);
+  EXPECT_THROW(RegisterAerial(depth, cv::Mat(100, 100, CV_32FC3, cv::Scalar(0))), Error);
+  AerialOptions bad;
+  bad.photo_max_side = -1;
+  EXPECT_THROW(RegisterAerial(depth, photo, bad), Error);
+  // a flat depth image: no buildings, an answer not an error
+  const AerialRegistration flat = RegisterAerial(depth, photo);
+  EXPECT_FALSE(flat.registration.ok);
+  EXPECT_TRUE(flat.depth_regions.empty());
+}
+
+}  // namespace
+}  // namespace mvkp
