@@ -28,7 +28,9 @@ void RegistrationOptions::Check() const {
   need(max_area_ratio >= 1, "RegistrationOptions.max_area_ratio must be >= 1");
   need(min_regions >= 2 && min_regions_with_evidence >= 2,
        "RegistrationOptions: min_regions and min_regions_with_evidence must be >= 2");
-  need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1, "RegistrationOptions.min_inlier_ratio in [0, 1]");
+  need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1 && min_inlier_ratio_with_evidence >= 0 &&
+           min_inlier_ratio_with_evidence <= 1,
+       "RegistrationOptions: min_inlier_ratio and min_inlier_ratio_with_evidence in [0, 1]");
   need(max_rms_px > 0, "RegistrationOptions.max_rms_px must be > 0");
   need(grow_tolerance >= 1 && grow_tolerance <= 4, "RegistrationOptions.grow_tolerance in [1, 4]");
   need(perspective_min_pairs >= 4, "RegistrationOptions.perspective_min_pairs must be >= 4");
@@ -435,6 +437,8 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   }
   // image evidence is independent support: one region pair fewer will do
   const int min_regions = evidence ? std::min(opt.min_regions, opt.min_regions_with_evidence) : opt.min_regions;
+  const double min_inlier_ratio =
+      evidence ? std::min(opt.min_inlier_ratio, opt.min_inlier_ratio_with_evidence) : opt.min_inlier_ratio;
   if (int(std::min(photo.size(), depth.size())) < min_regions) {
     res.reason = "no registration found: fewer regions than min_regions (" + std::to_string(photo.size()) +
                  " photo, " + std::to_string(depth.size()) + " depth)";
@@ -527,7 +531,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   auto acceptable = [&](const Evaluation& e, const cv::Matx33d& T, double* ratio) {
     const auto [np, nd] = verifier.Overlap(T);
     *ratio = double(e.count()) / double(std::max(1, std::min(np, nd)));
-    return e.count() >= min_regions && *ratio >= opt.min_inlier_ratio;
+    return e.count() >= min_regions && *ratio >= min_inlier_ratio;
   };
   // The few best distinct consistent sets (largest first); a set that shares
   // half of its pairs with a kept one is the same solution — the better stays.
@@ -694,7 +698,8 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     const double max_rms = support * opt.max_rms_px * tol / opt.inlier_px;
     const Fitted shape_fit = f;
     const bool consistent = acceptable(Evaluation{pairs, {}, 0}, f.T, &ratio);
-    const bool shape_ok = consistent && int(pairs.size()) >= opt.min_regions && f.rms <= max_rms;
+    const bool shape_ok =
+        consistent && int(pairs.size()) >= opt.min_regions && ratio >= opt.min_inlier_ratio && f.rms <= max_rms;
     EdgeScore es;
     bool image_ok = false;
     if (evidence) {
@@ -787,7 +792,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   }
   res.reason = "no registration found: " +
                (why.empty() ? cv::format("best hypothesis explains %d region pair(s) (need %d), ratio %.2f (need %.2f)",
-                                         best_count, min_regions, best_ratio, opt.min_inlier_ratio)
+                                         best_count, min_regions, best_ratio, min_inlier_ratio)
                             : why);
   res.propagate_ms = timer.ElapsedMs();
   return res;

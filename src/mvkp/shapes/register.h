@@ -73,6 +73,7 @@ struct RegistrationOptions {
   int min_regions = 4;                // consistent region pairs needed to accept
   int min_regions_with_evidence = 3;  // ... when the image check (EdgeEvidence) passes too
   double min_inlier_ratio = 0.3;      // consistent / regions mapped into the overlap
+  double min_inlier_ratio_with_evidence = 0.2;  // ... when the image check passes too
   double max_rms_px = 2.5;            // final RMS contour distance needed to accept (scaled as
                                       //   inlier_px, and by clamp((pairs - 1) / 5, 0.5, 1): few pairs, tighter)
   double edge_rms_factor = 2.0;       // with image evidence (EdgeEvidence): max RMS = this * the
