@@ -39,15 +39,6 @@ py::array_t<float> PointsArray(const std::vector<cv::Point2f>& p) {
   return a;
 }
 
-py::array_t<float> OutlineArray(const std::array<cv::Point2f, 4>& q) {
-  py::array_t<float> a({4, 2});
-  auto v = a.mutable_unchecked<2>();
-  for (int i = 0; i < 4; ++i) {
-    v(i, 0) = q[std::size_t(i)].x;
-    v(i, 1) = q[std::size_t(i)].y;
-  }
-  return a;
-}
 
 // Matches of the pair matcher and of Matcher as one result type.
 struct PairResult {

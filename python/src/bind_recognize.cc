@@ -50,15 +50,6 @@ struct PyDatabase {
   }
 };
 
-py::array_t<float> Outline(const std::array<cv::Point2f, 4>& q) {
-  py::array_t<float> a({4, 2});
-  auto v = a.mutable_unchecked<2>();
-  for (int i = 0; i < 4; ++i) {
-    v(i, 0) = q[std::size_t(i)].x;
-    v(i, 1) = q[std::size_t(i)].y;
-  }
-  return a;
-}
 
 std::string InfoRepr(const TargetInfo& i) {
   return "TargetInfo(id='" + i.id + "', title='" + i.title + "', size=" + std::to_string(i.width) + "x" +
@@ -90,7 +81,7 @@ void BindRecognize(py::module_& m) {
       .def_readonly("id", &Recognition::id)
       .def_property_readonly("homography", [](const Recognition& r) { return Matx33ToArray(r.homography); },
                              "3x3 float64 object -> frame pixels.")
-      .def_property_readonly("outline", [](const Recognition& r) { return Outline(r.outline); },
+      .def_property_readonly("outline", [](const Recognition& r) { return OutlineArray(r.outline); },
                              "4x2 float32 object corners in the frame.")
       .def_readonly("inliers", &Recognition::inliers)
       .def_readonly("votes", &Recognition::votes)

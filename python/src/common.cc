@@ -261,4 +261,14 @@ void RegisterErrors(py::module_& m) {
   });
 }
 
+py::array_t<float> OutlineArray(const std::array<cv::Point2f, 4>& q) {
+  py::array_t<float> a({4, 2});
+  auto v = a.mutable_unchecked<2>();
+  for (int i = 0; i < 4; ++i) {
+    v(i, 0) = q[std::size_t(i)].x;
+    v(i, 1) = q[std::size_t(i)].y;
+  }
+  return a;
+}
+
 }  // namespace mvkp::py_bindings

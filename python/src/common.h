@@ -2,6 +2,7 @@
 // keyword arguments, enums that accept their names, error translation.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -47,6 +48,8 @@ py::array MatToArray(cv::Mat m);
 py::array ViewOf(const cv::Mat& m, py::handle base, bool writeable = false);
 
 py::array_t<double> Matx33ToArray(const cv::Matx33d& m);
+// A target outline (4 corners) as a (4, 2) float32 array.
+py::array_t<float> OutlineArray(const std::array<cv::Point2f, 4>& q);
 cv::Matx33d ArrayToMatx33(py::handle obj, const char* what);
 
 // ---------------------------------------------------------------- options
