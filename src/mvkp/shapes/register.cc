@@ -727,7 +727,6 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     }
     if (!image_ok) {
       f = shape_fit;  // accepted on shapes alone: keep their fit
-      res.edge = es;
     } else if (opt.edge_refine) {
       const bool persp = opt.model == Model::kPerspective || opt.model == Model::kAuto;
       // outwards from the region pairs the transform was fitted on
@@ -742,7 +741,8 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       res.edge = evidence->Evaluate(f.T);
       // right near the matched regions but not across the overlap (a fit
       // of a few clustered regions extrapolated): most outlines in view
-      // must lie on edges
+      // must lie on edges. The photo's edges did align globally (the image
+      // route), so this is evidence against the set even if its shapes pass.
       const EdgeScore& e = res.edge;
       if (e.regions >= 8 && e.regions_on_edges < evidence->options().min_regions_on_edges * e.regions)
         return cv::format("best consistent set fits only part of the photo (%d of %d outlines in view on edges)",
