@@ -50,7 +50,7 @@ for s in 0 1 2 3 4 5; do
   echo "scene $s: $r ($(grep -o '"reason":"[^"]*"' "$T/reg$s.json"))"
   case $r in ok\ *) awk -v e="${r#ok }" 'BEGIN{exit !(e <= 5)}' && good=$((good + 1)) || fail "register scene $s: WRONG registration reported as success ($r)";; esac
 done
-check "register: generated scenes within 5 px: $good of 6 (at least ${MIN_GOOD:=3}), none wrong" test $good -ge "$MIN_GOOD"
+check "register: generated scenes within 5 px: $good of 6 (at least ${MIN_GOOD:=4}), none wrong" test $good -ge "$MIN_GOOD"
 check "register --draw wrote a drawing" test -s "$T/reg0.png"
 check "register --json: the correspondence JSON with per-stage times" "$PY" -c "
 import json; j = json.load(open('$T/reg0.json'))
