@@ -269,6 +269,14 @@ PYEOF
   else
     fail "installed mvkp db create/add: $(tail_of "$TMP/db.out")"
   fi
+  # mvkp video: the main binary execs the videoio helper from usr/libexec/mvkp.
+  HELPER=$ROOT/usr/libexec/mvkp/mvkp-video
+  if [[ -x $HELPER ]] && ! ldd "$HELPER" | grep -q 'not found' &&
+    "$CLI" video --help >"$TMP/video.out" 2>&1 && grep -q 'SOURCE' "$TMP/video.out"; then
+    ok "installed mvkp video: runs its helper usr/libexec/mvkp/mvkp-video"
+  else
+    fail "installed mvkp video (helper $HELPER): $(tail_of "$TMP/video.out")"
+  fi
 else
   fail "no usr/bin/mvkp in the root"
 fi

@@ -1,6 +1,9 @@
 // The mvkp command-line tool: one Register*/Run* pair per subcommand.
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include <CLI/CLI.hpp>
 
 namespace mvkp::cli {
@@ -25,5 +28,9 @@ void RegisterOrthoModels(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
 void RegisterVocab(CLI::App& app, int* exit_code);
 void RegisterServe(CLI::App& app, int* exit_code);
+
+// The process's command line as main() received it (video_forward.cc passes
+// it on to the mvkp-video helper).
+const std::vector<std::string>& CliArgv();
 
 }  // namespace mvkp::cli

@@ -1,6 +1,8 @@
 // mvkp: train planar targets from one image and find them in frames.
 #include <cstdio>
 #include <exception>
+#include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 #include <opencv2/core/utils/logger.hpp>
@@ -8,7 +10,15 @@
 #include "commands.h"
 #include "mvkp/core/error.h"
 
+namespace mvkp::cli {
+namespace {
+std::vector<std::string> g_argv;
+}  // namespace
+const std::vector<std::string>& CliArgv() { return g_argv; }
+}  // namespace mvkp::cli
+
 int main(int argc, char** argv) {
+  mvkp::cli::g_argv.assign(argv, argv + argc);
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   CLI::App app{"mvkp - fast planar image matching (Multiple View Kernel Projection)"};
   app.require_subcommand(1);
@@ -19,6 +29,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 256))
       ->each([](const std::string& v) { cv::setNumThreads(std::stoi(v)); });
   int code = 0;
+#ifdef MVKP_VIDEO_HELPER
+  // mvkp-video: the `video` subcommand alone, linked with OpenCV's videoio.
+  // `mvkp video ...` execs it (video_forward.cc) so that the main binary does
+  // not load videoio's ~100 shared libraries (FFmpeg, GStreamer, ...), which
+  // cost every other command ~17 MB of resident memory and start-up time.
+  mvkp::cli::RegisterVideo(app, &code);
+#else
   mvkp::cli::RegisterTrain(app, &code);
   mvkp::cli::RegisterMatch(app, &code);
   mvkp::cli::RegisterPair(app, &code);
@@ -36,6 +53,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterSegment(app, &code);
   mvkp::cli::RegisterRegister(app, &code);
   mvkp::cli::RegisterOrthoModels(app, &code);
+#endif
   // CLI11 reports "A subcommand is required" for a misspelt one; name it instead.
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;
