@@ -57,13 +57,6 @@ Json PointsJson(const std::vector<cv::Point>& c) {
   return a;
 }
 
-std::vector<Contour> ToContours(const std::vector<std::vector<cv::Point>>& in) {
-  std::vector<Contour> out;
-  out.reserve(in.size());
-  for (const auto& c : in) out.emplace_back(c.begin(), c.end());
-  return out;
-}
-
 geo::DepthRaster LoadDepth(const std::string& path, double res_m) {
   geo::DepthReadOptions o;
   if (res_m > 0) o.las.res_m = res_m;
@@ -195,7 +188,7 @@ int RunRegister(RegisterArgs& a) {
     else a.opt.model = RegistrationOptions::Model::kAuto;
     const double start_rss_mb = RssMb();
     Timer total;
-    const geo::DepthRaster d = LoadDepth(a.depth, a.res_m);
+    geo::DepthRaster d = LoadDepth(a.depth, a.res_m);
     geo::OpticalImage img = geo::ReadOpticalImage(a.optical);
     const double read_ms = total.ElapsedMs();
     AerialOptions ao;
@@ -205,9 +198,11 @@ int RunRegister(RegisterArgs& a) {
     ao.image_check = a.edge.min_contrast > 0;
     if (!ao.image_check) ao.edge.min_contrast = EdgeEvidenceOptions{}.min_contrast;
     LoadOrthoModels(a.fbm, a.lda, ao.optical);
-    const cv::Size photo_size = img.bgr.size();
-    // without a drawing the full-size photo is not needed once downscaled
-    const AerialRegistration ar = RegisterAerial(d.z, a.draw.empty() ? std::move(img.bgr) : img.bgr, ao);
+    const cv::Size photo_size = img.bgr.size(), depth_size = d.z.size();
+    // Without a drawing, the pixels are not needed after the pipeline used them.
+    const bool keep = !a.draw.empty();
+    const AerialRegistration ar =
+        RegisterAerial(keep ? d.z : std::move(d.z), keep ? img.bgr : std::move(img.bgr), ao);
     const Registration& reg = ar.registration;
     const std::vector<Contour>& pcont = ar.photo_regions;
     const std::vector<Contour>& dcont = ar.depth_regions;
@@ -242,7 +237,7 @@ int RunRegister(RegisterArgs& a) {
                      {"regions_on_edges", reg.edge.regions_on_edges}};
     else out["edge"] = nullptr;
     out["hypotheses"] = reg.hypotheses;
-    out["depth"] = {{"size", {d.z.cols, d.z.rows}}, {"res_m", d.res_m}};
+    out["depth"] = {{"size", {depth_size.width, depth_size.height}}, {"res_m", d.res_m}};
     out["photo"] = {{"size", {photo_size.width, photo_size.height}}};
     out["time_ms"] = {{"read", read_ms},          {"segment_depth", depth_ms}, {"segment_photo", photo_ms},
                       {"match", reg.match_ms},    {"propagate", reg.propagate_ms},

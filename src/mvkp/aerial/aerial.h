@@ -35,11 +35,13 @@ struct AerialRegistration {
   double segment_depth_ms = 0, segment_photo_ms = 0;
 };
 
-// `depth`: heights in metres (NaN = no data). `photo`: 8-bit BGR or grey. The
-// photo is taken by value: pass it with std::move when the caller does not
-// need it any more, and the full-size pixels are freed once downscaled.
+// `depth`: heights in metres (NaN = no data). `photo`: 8-bit BGR or grey.
+// Both are taken by value: pass them with std::move when the caller does not
+// need them any more, and their pixels are freed as soon as the pipeline is
+// done with them (the full-size photo once downscaled, the depth once
+// segmented, the downscaled photo once its segmentation maps are built).
 // "No registration found" is a result (registration.ok false with a reason);
 // bad input throws Error.
-AerialRegistration RegisterAerial(const cv::Mat1f& depth, cv::Mat photo, const AerialOptions& options = {});
+AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOptions& options = {});
 
 }  // namespace mvkp

@@ -129,6 +129,12 @@ Maps BuildMaps(const cv::Mat3b& bgr, const OpticalSegmentOptions& o) {
       m.edge(y, x) = kind;
     }
 
+  // The edge classification's working maps go before the smoothing copies the photo.
+  canny.release();
+  hsv.release();
+  gx.release();
+  gy.release();
+
   // Selective smoothing of in-region edge pixels.
   if (o.split_edges && o.selective_smoothing) {
     const cv::Mat3b src = m.img.clone();
@@ -239,12 +245,14 @@ double Rectilinearity(const std::vector<cv::Point>& c, double eps) {
 
 }  // namespace
 
-std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegmentOptions& opt,
-                                        cv::Mat1i* labels_out) {
-  opt.Check();
-  const cv::Mat3b bgr = ToBgr(input);
+namespace {
+
+// `bgr` is released once the maps are built (the maps hold what is needed).
+std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& opt, cv::Mat1i* labels_out) {
   const int rows = bgr.rows, cols = bgr.cols;
+  const cv::Size size = bgr.size();
   Maps m = BuildMaps(bgr, opt);
+  bgr.release();
 
   // fBm model: given, or fitted on this photo's (eroded) vegetation map.
   FbmModel fbm = opt.fbm;
@@ -258,11 +266,19 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
       use_fractal = false;  // too little known-natural texture to fit on
     }
   }
-  cv::Mat1f ofe;
-  if (use_fractal) ofe = OverallFractalError(m.raw_gray, fbm);
-  const float ofe_min = use_fractal ? static_cast<float>(opt.ofe_ratio * fbm.ofe) : 0.f;
+  // The fractal-error test as a mask (1 byte a pixel instead of the float map).
+  cv::Mat1b textured;  // 255: fractal error below the building threshold (natural texture)
+  if (use_fractal) {
+    const float ofe_min = static_cast<float>(opt.ofe_ratio * fbm.ofe);
+    textured = OverallFractalError(m.raw_gray, fbm) < ofe_min;
+  }
 
-  cv::Mat1i label(bgr.size(), 0), visited(bgr.size(), 0);
+  // label: the segment id per pixel. tested: 1 where the growing segment has
+  // already looked (reset from `touched` after each segment), instead of a
+  // second int map of ids.
+  cv::Mat1i label(size, 0);
+  cv::Mat1b tested(size, uchar(0));
+  std::vector<cv::Point> touched;
   std::vector<Segment> segs(1);  // index 0 unused
   std::vector<cv::Point> queue;
   queue.reserve(4096);
@@ -271,7 +287,7 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
     if (label(y, x) || m.edge(y, x) != kNoEdge) return false;
     if (opt.use_vegetation && m.veg(y, x)) return false;
     if (opt.use_shadow && m.shadow(y, x)) return false;
-    if (use_fractal && ofe(y, x) < ofe_min) return false;
+    if (use_fractal && textured(y, x)) return false;
     return true;
   };
 
@@ -285,7 +301,9 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
     queue.clear();
     queue.emplace_back(sx, sy);
     label(sy, sx) = id;
-    visited(sy, sx) = id;
+    touched.clear();
+    touched.emplace_back(sx, sy);
+    tested(sy, sx) = 1;
     static const int dxs[4] = {1, -1, 0, 0}, dys[4] = {0, 0, 1, -1};
     for (size_t qi = 0; qi < queue.size(); ++qi) {
       const cv::Point p = queue[qi];
@@ -297,9 +315,10 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
       for (int k = 0; k < 4; ++k) {
         const int x = p.x + dxs[k], y = p.y + dys[k];
         if (x < 0 || y < 0 || x >= cols || y >= rows) continue;
-        int& vis = visited(y, x);
-        if (vis == id || label(y, x)) continue;
-        vis = id;
+        uchar& t = tested(y, x);
+        if (t || label(y, x)) continue;
+        t = 1;
+        touched.emplace_back(x, y);
         if (m.barrier(y, x)) continue;  // true edge: neither accepted nor expanded
         if (opt.use_vegetation && m.veg(y, x)) continue;
         if (opt.use_shadow && m.shadow(y, x)) continue;
@@ -319,7 +338,7 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
           for (int ch = 0; ch < 3; ++ch) d += std::abs(c[ch] / tc - s.sum[ch] / ts);
           if (d > opt.max_chroma_step) continue;
         }
-        if (use_fractal && ofe(y, x) < ofe_min) continue;
+        if (use_fractal && textured(y, x)) continue;
         s.lo = std::min(s.lo, I);
         s.hi = std::max(s.hi, I);
         label(y, x) = id;
@@ -328,6 +347,7 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
     }
     s.box = cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
     segs.push_back(s);
+    for (const cv::Point& q : touched) tested(q) = 0;
   };
 
   // Grid seeds with four-way subdivision.
@@ -498,12 +518,27 @@ std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegme
     return a.area > b.area;
   });
   if (labels_out) {
-    *labels_out = cv::Mat1i(bgr.size(), 0);
+    *labels_out = cv::Mat1i(size, 0);
     for (int i = static_cast<int>(out.size()) - 1; i >= 0; --i)
       cv::drawContours(*labels_out, std::vector<std::vector<cv::Point>>{out[i].contour}, 0,
                        cv::Scalar(i + 1), cv::FILLED);
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<PhotoRegion> SegmentOptical(const cv::Mat& input, const OpticalSegmentOptions& opt,
+                                        cv::Mat1i* labels_out) {
+  opt.Check();
+  return SegmentBgr(ToBgr(input), opt, labels_out);
+}
+
+std::vector<PhotoRegion> SegmentOptical(cv::Mat&& input, const OpticalSegmentOptions& opt, cv::Mat1i* labels_out) {
+  opt.Check();
+  cv::Mat3b bgr = ToBgr(input);
+  input.release();
+  return SegmentBgr(std::move(bgr), opt, labels_out);
 }
 
 cv::Mat DrawOpticalMaps(const cv::Mat& input, const OpticalSegmentOptions& opt) {

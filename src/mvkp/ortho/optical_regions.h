@@ -140,6 +140,11 @@ struct OpticalSegmentOptions {
 // elsewhere. Throws Error(kBadImage) for an empty or non-8-bit image.
 std::vector<PhotoRegion> SegmentOptical(const cv::Mat& bgr, const OpticalSegmentOptions& opt = {},
                                         cv::Mat1i* labels = nullptr);
+// The same, consuming `bgr`: its pixels are released (when no other Mat
+// shares them) once the working maps are built, which lowers peak memory by
+// the photo's size.
+std::vector<PhotoRegion> SegmentOptical(cv::Mat&& bgr, const OpticalSegmentOptions& opt = {},
+                                        cv::Mat1i* labels = nullptr);
 
 // Debug view of the assistant maps: vegetation green, shadow blue, true edges
 // red, in-region edges yellow, seeds white, over the dimmed photo.
