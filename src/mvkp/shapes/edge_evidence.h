@@ -36,12 +36,12 @@ struct EdgeEvidenceOptions {
   double blur_sigma = 1.0;    // Gaussian blur of the photo before differentiation, photo px
   int min_points = 60;        // outline samples inside the photo needed for a verdict
   double min_contrast = 1.8;  // accepted when contrast >= this (0 in the CLI: no image check)
-  double min_perspective_gain = 0.02;
-  double outward_growth = 1.4;
-  int min_region_points = 8;      // per-outline contrast: samples in view needed
-  double min_region_contrast = 1.5;  // an outline "on edges" (its own contrast)
-  double min_regions_on_edges = 0.45;  // share of outlines in view on edges, for a refined result  // RefineOutward: support side growth per step  // Refine: the homography stage is kept when it raises
+  double min_perspective_gain = 0.02;  // Refine: the homography stage is kept when it raises
                                        //   the edge response by this share over the similarity
+  double outward_growth = 1.4;         // RefineOutward: support side growth per step
+  int min_region_points = 8;           // per-outline contrast: samples in view needed
+  double min_region_contrast = 1.5;    // an outline "on edges" (its own contrast)
+  double min_regions_on_edges = 0.45;  // share of outlines in view on edges, for a refined result
   void Check() const;         // throws Error(kInvalidArgument)
 };
 
