@@ -99,4 +99,11 @@ expect_fail "video: missing database" "$T/none.db" "$MVKP" video "$T/none.db" "$
 "$MVKP" db create "$T/empty.db" >/dev/null
 expect_fail "video: database without targets" "no targets" "$MVKP" video "$T/empty.db" "$T/clip.avi"
 
+# The main binary hands `video` to its helper mvkp-video; a binary copied away
+# from it says what is missing.
+mkdir -p "$T/alone"
+cp "$MVKP" "$T/alone/mvkp"
+expect_fail "video: helper missing" "mvkp-video" "$T/alone/mvkp" video "$DB" "$T/clip.avi"
+expect_ok "other commands without the helper" "$T/alone/mvkp" db list "$DB"
+
 cli_finish

@@ -345,6 +345,19 @@ TEST(OpticalRegions, MergingJoinsPitchedRoofHalves) {
   EXPECT_GT(with.pitched_merged, without.pitched_merged + 2);
 }
 
+TEST(OpticalRegions, ConsumingOverloadGivesTheSameRegionsAndFreesThePhoto) {
+  const Scene sc = MakeScene(2, 500);
+  cv::Mat1i labels_kept, labels_moved;
+  const std::vector<PhotoRegion> kept = SegmentOptical(sc.photo, {}, &labels_kept);
+  cv::Mat moved = sc.photo.clone();
+  const std::vector<PhotoRegion> consumed = SegmentOptical(std::move(moved), {}, &labels_moved);
+  EXPECT_TRUE(moved.empty());  // the caller's pixels were released
+  ASSERT_EQ(kept.size(), consumed.size());
+  ASSERT_GT(kept.size(), 3u);
+  for (size_t i = 0; i < kept.size(); ++i) EXPECT_EQ(kept[i].contour, consumed[i].contour) << i;
+  EXPECT_EQ(cv::norm(labels_kept, labels_moved, cv::NORM_INF), 0.0);
+}
+
 TEST(OpticalRegions, StoredFbmModelFittedOnNonBuildingAreas) {
   // "Fitted once per dataset": fit on one labelled scene's non-building
   // pixels (ground truth), save, load, use on another scene.
