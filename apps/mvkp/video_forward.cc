@@ -39,7 +39,6 @@ void RegisterVideo(CLI::App& app, int* code) {
   // Every argument, --help included, goes to the helper, which parses it.
   c->set_help_flag();
   c->prefix_command();
-  c->footer("(run 'mvkp video --help' for its options)");
   c->callback([code] {
     const std::vector<std::string>& argv_in = CliArgv();
     std::vector<char*> argv;

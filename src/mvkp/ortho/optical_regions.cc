@@ -243,10 +243,6 @@ double Rectilinearity(const std::vector<cv::Point>& c, double eps) {
   return in / total;
 }
 
-}  // namespace
-
-namespace {
-
 // `bgr` is released once the maps are built (the maps hold what is needed).
 std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& opt, cv::Mat1i* labels_out) {
   const int rows = bgr.rows, cols = bgr.cols;
