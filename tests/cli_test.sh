@@ -207,7 +207,7 @@ expect_reject "match without a query" "$MVKP" match "$MODEL"
 M=$T/starry.mvkp
 expect_ok "train starry_night.jpg --views 40" "$MVKP" train -q "$SAMPLES/starry_night.jpg" -o "$M" --views 40
 size=$(stat -c %s "$M" 2>/dev/null || echo 0)
-check "starry model written, $size bytes < 500 KB" test "$size" -gt 0 -a "$size" -lt 512000
+check "starry model written, $size bytes < 1.5 MB (issue 18)" test "$size" -gt 0 -a "$size" -lt 1572864
 
 S=$T/synth
 expect_ok "synth starry_night.jpg --n 3 --seed 1" "$MVKP" synth "$SAMPLES/starry_night.jpg" --n 3 --seed 1 -o "$S"

@@ -90,7 +90,7 @@ import re, sys
 m = re.search(r'(\d+) eligible .* (\d+) kept', open('$T/out').read())
 e, k = int(m.group(1)), int(m.group(2))
 sys.exit(0 if abs(k - 0.3 * e) <= 1 else 1)"
-expect_ok "train --select stability --keep 50" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/s.mvkp" -q --explain --select stability --keep 50
+expect_ok "train --select stability --keep 50 --view-model affine" "$MVKP" train "$SAMPLES/coffee.jpg" -o "$T/s.mvkp" -q --explain --select stability --keep 50 --view-model affine
 check "stability: 0 rotation views, 50 kept" grep -q "100 general + 0 rotation), 50 kept" "$T/out"
 expect_ok "match with the RIFS model" "$MVKP" match "$T/c.mvkp" "$SAMPLES/coffee.jpg" --json
 json_check "RIFS model finds its own target" 'j[0]["found"] and j[0]["inliers"] >= 20'

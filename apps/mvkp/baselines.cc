@@ -16,7 +16,15 @@ Baseline::Baseline(const std::string& name, int max_features) : name_("opencv-" 
   else if (name == "orb") { f_ = cv::ORB::create(max_features); norm_ = cv::NORM_HAMMING; }
   else if (name == "akaze") { f_ = cv::AKAZE::create(); norm_ = cv::NORM_HAMMING; }
   else if (name == "brisk") { f_ = cv::BRISK::create(); norm_ = cv::NORM_HAMMING; }
-  else throw Error(ErrorCode::kInvalidArgument, "unknown baseline '" + name + "' (sift, orb, akaze, brisk)");
+  else if (name == "asift") {
+    // ASIFT (Morel & Yu): SIFT on the affine views OpenCV's AffineFeature
+    // simulates (tilts up to 4*sqrt(2), as in the paper). Tens of thousands
+    // of features per image, so matching uses FLANN kd-trees, as OpenCV's
+    // asift sample does, rather than brute force.
+    f_ = cv::AffineFeature::create(cv::SIFT::create());
+    flann_ = true;
+  }
+  else throw Error(ErrorCode::kInvalidArgument, "unknown baseline '" + name + "' (sift, orb, akaze, brisk, asift)");
 }
 
 void Baseline::Prepare(const cv::Mat& object) { f_->detectAndCompute(object, cv::noArray(), kobj_, dobj_); }
@@ -29,7 +37,14 @@ BaselineResult Baseline::Frame(const cv::Mat& frame) const {
   f_->detectAndCompute(frame, cv::noArray(), k, d);
   r.keypoints = int(k.size());
   std::vector<std::vector<cv::DMatch>> knn;
-  if (!d.empty() && dobj_.rows >= 2) cv::BFMatcher(norm_).knnMatch(d, dobj_, knn, 2);
+  if (!d.empty() && dobj_.rows >= 2) {
+    if (flann_) {
+      cv::FlannBasedMatcher fm(cv::makePtr<cv::flann::KDTreeIndexParams>(4), cv::makePtr<cv::flann::SearchParams>(32));
+      fm.knnMatch(d, dobj_, knn, 2);
+    } else {
+      cv::BFMatcher(norm_).knnMatch(d, dobj_, knn, 2);
+    }
+  }
   for (auto& m : knn)
     if (m.size() == 2 && m[0].distance < 0.8f * m[1].distance) {
       r.object_pts.push_back(kobj_[m[0].trainIdx].pt);

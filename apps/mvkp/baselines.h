@@ -21,7 +21,7 @@ struct BaselineResult {
 
 class Baseline {
  public:
-  // name: sift | orb | akaze | brisk
+  // name: sift | orb | akaze | brisk | asift (AffineFeature over SIFT, FLANN matching)
   Baseline(const std::string& name, int max_features = 2000);
   const std::string& name() const { return name_; }
   void Prepare(const cv::Mat& object_gray);
@@ -31,6 +31,7 @@ class Baseline {
   std::string name_;
   cv::Ptr<cv::Feature2D> f_;
   int norm_ = cv::NORM_L2;
+  bool flann_ = false;
   std::vector<cv::KeyPoint> kobj_;
   cv::Mat dobj_;
 };

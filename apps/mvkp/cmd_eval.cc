@@ -161,9 +161,10 @@ void RegisterEval(CLI::App& app, int* code) {
   AddTrainOptions(c, &a->train);
   AddMatchOptions(c, &a->match, &a->affine);
   RegisterEvalOxford(c, code);
+  RegisterEvalSweep(c, code);
   c->require_subcommand(0, 1);
   c->callback([a, c, code] {
-    if (c->got_subcommand("oxford")) return;  // its own callback ran
+    if (c->got_subcommand("oxford") || c->got_subcommand("sweep")) return;  // its own callback ran
     if (a->manifests.empty()) throw CLI::RequiredError("MANIFEST");
     *code = RunEval(*a);
   });

@@ -17,6 +17,7 @@ void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
 void RegisterEval(CLI::App& app, int* exit_code);
 void RegisterEvalOxford(CLI::App* eval, int* exit_code);  // `eval oxford`, a subcommand of eval
+void RegisterEvalSweep(CLI::App* eval, int* exit_code);   // `eval sweep`: the envelope benchmark
 void RegisterKnn(CLI::App& app, int* exit_code);
 void RegisterQuality(CLI::App& app, int* exit_code);
 void RegisterDb(CLI::App& app, int* exit_code);

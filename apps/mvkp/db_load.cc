@@ -8,12 +8,7 @@
 
 namespace mvkp::cli {
 
-TrainOptions DbTrainDefaults() {
-  TrainOptions t;
-  t.max_object_side = 320;
-  t.min_scale = 0.25;
-  return t;
-}
+TrainOptions DbTrainDefaults() { return RecognitionTrainDefaults(); }
 
 TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, const cv::Mat& gray,
                               const TrainOptions& train, const std::string& name) {

@@ -24,6 +24,23 @@ void AddTrainOptions(CLI::App* cmd, TrainOptions* o) {
   cmd->add_option("--max-scale", o->max_scale, "largest view scale lambda")->capture_default_str();
   cmd->add_option("--points-per-view", o->points_per_view, "detections kept per training view")->capture_default_str();
   cmd->add_option("--max-object-side", o->max_object_side, "train larger targets at this size (0: never)")->capture_default_str();
+  const std::map<std::string, ViewModel> vm = {
+      {"mixed", ViewModel::kMixed}, {"camera", ViewModel::kCamera}, {"affine", ViewModel::kAffine}};
+  cmd->add_option("--view-model", o->view_model,
+                  "training views: mixed (affine + steep camera views) | camera (tilted plane only) | affine (thesis)")
+      ->transform(CLI::CheckedTransformer(vm, CLI::ignore_case))
+      ->default_str("mixed");
+  cmd->add_option("--camera-views", o->camera_views, "mixed: pinhole-camera views per level at steep tilts")->capture_default_str();
+  cmd->add_option("--camera-min-tilt", o->camera_min_tilt, "mixed: shallowest tilt of the camera views (degrees)")->capture_default_str();
+  cmd->add_option("--levels", o->levels, "training pyramid levels, a factor 2 apart (0: auto)")->capture_default_str();
+  cmd->add_option("--min-apparent-size", o->min_apparent_size, "auto levels cover targets down to this longest side (px)")
+      ->capture_default_str();
+  cmd->add_option("--level-locations", o->level_locations, "each smaller level keeps this fraction of the previous level's locations")
+      ->capture_default_str();
+  cmd->add_option("--level-min-scale", o->level_min_scale, "camera views: smallest scale of a level")->capture_default_str();
+  cmd->add_option("--level-max-scale", o->level_max_scale, "camera views: largest scale of a level")->capture_default_str();
+  cmd->add_option("--max-tilt", o->max_tilt_deg, "camera views: steepest tilt (degrees)")->capture_default_str();
+  cmd->add_option("--frontal-share", o->frontal_share, "camera views: share at tilts <= 40 degrees")->capture_default_str();
   cmd->add_option("--view-blur", o->view_blur, "max Gaussian blur sigma of training views")->capture_default_str();
   cmd->add_option("--view-noise", o->view_noise, "noise sigma of training views (grey levels)")->capture_default_str();
   cmd->add_option("--track-radius", o->track_radius, "view pixels within which detections form one track")->capture_default_str();
@@ -72,18 +89,30 @@ void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
   cmd->add_option("--ratio", o->ratio, "distance-ratio threshold d1/d2")->capture_default_str();
   cmd->add_option("--dynamic-goal", o->dynamic_goal, "steer the ratio toward this many matches (0: fixed ratio)")->capture_default_str();
   cmd->add_option("--max-points", o->max_points, "strongest query points")->capture_default_str();
+  cmd->add_option("--grid-cells", o->grid_cells, "query points: cells along the frame's longer side")->capture_default_str();
+  cmd->add_option("--grid-share", o->grid_share, "share of the query points given out per cell first (0: strongest of the frame)")->capture_default_str();
   cmd->add_option("--half-res-points", o->half_res_points, "extra points detected at half resolution (0: off)")->capture_default_str();
   cmd->add_option("--ransac-threshold", o->ransac_threshold, "inlier reprojection error, pixels")->capture_default_str();
   cmd->add_option("--min-inliers", o->min_inliers, "fewer inliers: target not found")->capture_default_str();
   cmd->add_flag("--affine", *affine, "fit an affine transform instead of a homography");
-  cmd->add_option("--index", o->index, "descriptor search: exact (FFVA) | approx | brute")
-      ->check(CLI::IsMember({"exact", "approx", "brute"}))
+  cmd->add_option("--index", o->index, "descriptor search: ivf (inverted file, approximate) | exact (FFVA) | approx | brute")
+      ->check(CLI::IsMember({"ivf", "exact", "approx", "brute"}))
       ->capture_default_str();
+  cmd->add_option("--nprobe", o->nprobe, "ivf: lists scanned per query descriptor")->capture_default_str();
   const std::map<std::string, RobustMethod> methods = {{"ransac", RobustMethod::kRansac}, {"fast", RobustMethod::kFast},
-                                                       {"accurate", RobustMethod::kAccurate}, {"magsac", RobustMethod::kMagsac}};
-  cmd->add_option("--robust", o->robust, "robust estimator: ransac | fast | accurate | magsac")
+                                                       {"accurate", RobustMethod::kAccurate}, {"magsac", RobustMethod::kMagsac},
+                                                       {"prosac", RobustMethod::kProsac}};
+  cmd->add_option("--robust", o->robust, "robust estimator: ransac | fast | accurate | magsac | prosac")
       ->transform(CLI::CheckedTransformer(methods, CLI::ignore_case))
-      ->default_str("accurate");
+      ->default_str(o->robust == RobustMethod::kProsac ? "prosac" : "accurate");
+  cmd->add_option("--upsample-points", o->upsample_points, "not found: points from the frame upsampled twice (0: off)")
+      ->capture_default_str();
+  cmd->add_option("--tilt-factors", o->tilt_factors, "steep views: tilt factors simulated when nothing is found (ASIFT-style)")
+      ->delimiter(',');
+  cmd->add_option("--tilt-directions", o->tilt_directions, "steep views: directions per tilt factor (0: off)")->capture_default_str();
+  cmd->add_option("--tilt-points", o->tilt_points, "steep views: query points per simulated view")->capture_default_str();
+  cmd->add_flag("!--no-refine", o->refine, "skip the guided refinement after the robust fit");
+  cmd->add_option("--refine-radius", o->refine_radius, "guided refinement: search radius (px)")->capture_default_str();
 }
 
 nlohmann::json HomographyJson(const MatchResult& r) {

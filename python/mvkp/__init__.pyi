@@ -73,6 +73,28 @@ class BuildingRegion:
     def height(self) -> float:
         """Median height above local ground, metres."""
 
+class CameraSceneOptions:
+    """mvkp::CameraSceneOptions: camera-model test frames (mvkp eval sweep, quality)."""
+    width: int
+    height: int
+    min_hfov: float
+    max_hfov: float
+    fit: bool
+    min_gain: float
+    max_gain: float
+    max_offset: float
+    gradient: float
+    max_blur: float
+    min_noise: float
+    max_noise: float
+    jpeg_quality: int
+    supersample: int
+    def __init__(self, *, width: int = 640, height: int = 480, min_hfov: float = 55.0, max_hfov: float = 70.0, fit: bool = True, min_gain: float = 0.45, max_gain: float = 1.3, max_offset: float = 30.0, gradient: float = 0.25, max_blur: float = 1.2, min_noise: float = 1.0, max_noise: float = 5.0, jpeg_quality: int = 85, supersample: int = 4) -> None: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    def copy(self) -> CameraSceneOptions: ...
+    def check(self) -> None:
+        """Raises InvalidArgumentError naming the first bad option."""
+
 class Cdikp:
     """CDIKP: SIFT keypoints with a 20-D Walsh-Hadamard descriptor (compare with L2). Keypoints are (n, 7) float32 arrays: x, y, size, angle, response, octave, class_id (mvkp.to_cv_keypoints() makes cv2.KeyPoint lists)."""
     def __init__(self, options: CdikpOptions | None = None, *, dims: int = 20, patch_size: int = 32, scale_factor: float = 10.0, nfeatures: int = 0, n_octave_layers: int = 3, contrast_threshold: float = 0.04, edge_threshold: float = 10.0, sigma: float = 1.6) -> None:
@@ -191,8 +213,8 @@ class Database:
         """The target's trained Model."""
     def image_bytes(self, id: str) -> bytes:
         """The stored encoded target image (PNG/JPEG bytes; may be empty)."""
-    def add(self, id: str, image: numpy.ndarray, *, title: str = '', artist: str = '', year: str = '', url: str = '', meta: Any = None, image_bytes: Any = None, options: TrainOptions | None = None, views: int = 100, locations: int = 200, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.25, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 320, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> None:
-        """Trains a target from `image` and adds it, as `mvkp db add` (its training defaults: max_object_side=320, min_scale=0.25; other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. image_bytes: the encoded image to store (default: `image` as PNG)."""
+    def add(self, id: str, image: numpy.ndarray, *, title: str = '', artist: str = '', year: str = '', url: str = '', meta: Any = None, image_bytes: Any = None, options: TrainOptions | None = None, view_model: ViewModel | str = 'mixed', views: int = 100, camera_views: int = 40, camera_min_tilt: float = 50.0, locations: int = 200, level_locations: float = 0.5, levels: int = 0, min_apparent_size: int = 40, min_level_size: int = 48, level_min_scale: float = 0.5, level_max_scale: float = 1.0, max_tilt_deg: float = 80.0, frontal_share: float = 0.35, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.25, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 320, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> None:
+        """Trains a target from `image` and adds it, as `mvkp db add` (its training defaults: max_object_side=320, other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. image_bytes: the encoded image to store (default: `image` as PNG)."""
     def remove(self, id: str) -> bool:
         """Removes a target; False if there was none."""
     def recognizer(self, options: RecognizerOptions | None = None, *, match: MatchOptions | dict[str, Any] = ..., search: RecognizerSearch | str = 'exact', max_locations: int = 150, words_per_location: int = 5, query_words: int = 2, max_hamming: int = 6, keep_models: bool = False, probe_words: int = 8, max_candidates: int = 5, min_votes: int = 8, min_inliers: int = 12) -> Recognizer:
@@ -242,7 +264,11 @@ class EdgeEvidenceOptions:
     min_points: int
     min_contrast: float
     min_perspective_gain: float
-    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02) -> None: ...
+    outward_growth: float
+    min_region_points: int
+    min_region_contrast: float
+    min_regions_on_edges: float
+    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> EdgeEvidenceOptions: ...
     def check(self) -> None:
@@ -338,9 +364,16 @@ class LocalFeatureOptions:
 
 class MatchOptions:
     """mvkp::MatchOptions: how a trained target is searched in a frame."""
+    working_size: int
     max_points: int
+    grid_cells: int
+    grid_share: float
     half_res_points: int
     retry_below_inliers: int
+    upsample_points: int
+    tilt_factors: list[float]
+    tilt_directions: int
+    tilt_points: int
     ratio: float
     dynamic_goal: int
     dynamic_checks: int
@@ -352,8 +385,11 @@ class MatchOptions:
     ransac_iterations: int
     ransac_confidence: float
     min_inliers: int
+    refine: bool
+    refine_radius: float
     index: str
-    def __init__(self, *, max_points: int = 500, half_res_points: int = 250, retry_below_inliers: int = 40, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'accurate', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, index: str = 'exact') -> None: ...
+    nprobe: int
+    def __init__(self, *, working_size: int = 1280, max_points: int = 1000, grid_cells: int = 16, grid_share: float = 0.75, half_res_points: int = 250, retry_below_inliers: int = 40, upsample_points: int = 1000, tilt_factors: list[float] = ..., tilt_directions: int = 4, tilt_points: int = 600, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'prosac', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, refine: bool = True, refine_radius: float = 6.0, index: str = 'ivf', nprobe: int = 8) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> MatchOptions: ...
     def check(self) -> None:
@@ -394,7 +430,7 @@ class MatchResult:
 
 class Matcher:
     """Finds one trained target in frames (mvkp::Matcher). Reuse it across frames: building its index costs more than a frame."""
-    def __init__(self, model: Model, options: MatchOptions | None = None, *, max_points: int = 500, half_res_points: int = 250, retry_below_inliers: int = 40, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'accurate', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, index: str = 'exact') -> None:
+    def __init__(self, model: Model, options: MatchOptions | None = None, *, working_size: int = 1280, max_points: int = 1000, grid_cells: int = 16, grid_share: float = 0.75, half_res_points: int = 250, retry_below_inliers: int = 40, upsample_points: int = 1000, tilt_factors: list[float] = ..., tilt_directions: int = 4, tilt_points: int = 600, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'prosac', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, refine: bool = True, refine_radius: float = 6.0, index: str = 'ivf', nprobe: int = 8) -> None:
         """Keyword arguments are MatchOptions fields (max_points=500, ratio=0.85, geometry='homography', ...)."""
     def match(self, frame: numpy.ndarray) -> MatchResult:
         """Finds the target in a frame (HxW uint8 or HxWx3 BGR); the GIL is released meanwhile."""
@@ -606,8 +642,14 @@ class QualityOptions:
     lookalike: float
     train: TrainOptions
     match: MatchOptions
-    scene: SceneOptions
-    def __init__(self, *, target_size: int = 320, test_views: int = 120, seed: int = 7, success_px: float = 5.0, min_contrast: float = 24.0, w_detection: float = 0.6, w_stable: float = 0.1, w_distinct: float = 0.1, w_texture: float = 0.1, w_coverage: float = 0.1, half_rate: float = 0.3, good_stable_tracks: int = 300, good_texture: float = 0.5, good_coverage: float = 0.6, good_distinct: float = 0.4, repeated_distinct: float = 0.15, lookalike: float = 0.25, train: TrainOptions | dict[str, Any] = ..., match: MatchOptions | dict[str, Any] = ..., scene: SceneOptions | dict[str, Any] = ...) -> None: ...
+    min_size: float
+    max_size: float
+    size_tilt: float
+    max_tilt: float
+    tilt_size_min: float
+    tilt_size_max: float
+    scene: CameraSceneOptions
+    def __init__(self, *, target_size: int = 320, test_views: int = 96, seed: int = 7, success_px: float = 5.0, min_contrast: float = 24.0, w_detection: float = 0.6, w_stable: float = 0.1, w_distinct: float = 0.1, w_texture: float = 0.1, w_coverage: float = 0.1, half_rate: float = 0.3, good_stable_tracks: int = 300, good_texture: float = 0.5, good_coverage: float = 0.6, good_distinct: float = 0.4, repeated_distinct: float = 0.15, lookalike: float = 0.25, train: TrainOptions | dict[str, Any] = ..., match: MatchOptions | dict[str, Any] = ..., min_size: float = 60.0, max_size: float = 620.0, size_tilt: float = 40.0, max_tilt: float = 75.0, tilt_size_min: float = 200.0, tilt_size_max: float = 400.0, scene: CameraSceneOptions | dict[str, Any] = ...) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> QualityOptions: ...
     def check(self) -> None:
@@ -790,9 +832,11 @@ class RegistrationOptions:
     inlier_px: float
     inlier_fraction: float
     max_area_ratio: float
+    grow_tolerance: float
     min_regions: int
     min_regions_with_evidence: int
     min_inlier_ratio: float
+    min_inlier_ratio_with_evidence: float
     max_rms_px: float
     edge_rms_factor: float
     edge_refine: bool
@@ -801,7 +845,7 @@ class RegistrationOptions:
     model: RegistrationOptions.Model | str
     perspective_min_pairs: int
     seed: int
-    def __init__(self, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> None: ...
+    def __init__(self, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> RegistrationOptions: ...
     def check(self) -> None:
@@ -824,6 +868,7 @@ class RobustMethod:
     fast: RobustMethod
     accurate: RobustMethod
     magsac: RobustMethod
+    prosac: RobustMethod
     def __init__(self, value: int | str) -> None: ...
     @property
     def name(self) -> str: ...
@@ -904,8 +949,19 @@ class TieMode:
 
 class TrainOptions:
     """mvkp::TrainOptions: how a target is trained from one image."""
+    view_model: ViewModel | str
     views: int
+    camera_views: int
+    camera_min_tilt: float
     locations: int
+    level_locations: float
+    levels: int
+    min_apparent_size: int
+    min_level_size: int
+    level_min_scale: float
+    level_max_scale: float
+    max_tilt_deg: float
+    frontal_share: float
     keep_fraction: float
     select: Selection | str
     alpha: float
@@ -928,7 +984,7 @@ class TrainOptions:
     min_locations: int
     kmeans_iterations: int
     progress: Callable[[int, int], None] | None
-    def __init__(self, *, views: int = 100, locations: int = 200, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.4, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 640, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> None: ...
+    def __init__(self, *, view_model: ViewModel | str = 'mixed', views: int = 100, camera_views: int = 40, camera_min_tilt: float = 50.0, locations: int = 200, level_locations: float = 0.5, levels: int = 0, min_apparent_size: int = 40, min_level_size: int = 48, level_min_scale: float = 0.5, level_max_scale: float = 1.0, max_tilt_deg: float = 80.0, frontal_share: float = 0.35, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.4, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 640, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> TrainOptions: ...
     def check(self) -> None:
@@ -944,13 +1000,24 @@ class TrainOptions:
         @property
         def value(self) -> int: ...
 
+class ViewModel:
+    """Training views per pyramid level: affine + steep camera views, camera views only, or the thesis's affine views (TrainOptions.view_model)."""
+    mixed: ViewModel
+    camera: ViewModel
+    affine: ViewModel
+    def __init__(self, value: int | str) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def value(self) -> int: ...
+
 def BruteForceIndex(data: numpy.ndarray, labels: Any = None) -> KnnIndex:
     """An exact linear-scan index (AVX2 when available)."""
 
 def FfvaIndex(data: numpy.ndarray, labels: Any = None, options: FfvaOptions | None = None, *, filter: FfvaOptions.Filter | str = 'exact', leaf_size: int = 64, scan_blocks: int = 8) -> KnnIndex:
     """An FFVA index (exact kNN: results equal brute force) over data (n, dim) float32, with int32 labels (default: each vector its own). Keyword arguments are FfvaOptions fields (filter='exact', leaf_size=64, scan_blocks=8)."""
 
-def assess_target(image: numpy.ndarray, options: QualityOptions | None = None, *, target_size: int = 320, test_views: int = 120, seed: int = 7, success_px: float = 5.0, min_contrast: float = 24.0, w_detection: float = 0.6, w_stable: float = 0.1, w_distinct: float = 0.1, w_texture: float = 0.1, w_coverage: float = 0.1, half_rate: float = 0.3, good_stable_tracks: int = 300, good_texture: float = 0.5, good_coverage: float = 0.6, good_distinct: float = 0.4, repeated_distinct: float = 0.15, lookalike: float = 0.25, train: TrainOptions | dict[str, Any] = ..., match: MatchOptions | dict[str, Any] = ..., scene: SceneOptions | dict[str, Any] = ...) -> QualityReport:
+def assess_target(image: numpy.ndarray, options: QualityOptions | None = None, *, target_size: int = 320, test_views: int = 96, seed: int = 7, success_px: float = 5.0, min_contrast: float = 24.0, w_detection: float = 0.6, w_stable: float = 0.1, w_distinct: float = 0.1, w_texture: float = 0.1, w_coverage: float = 0.1, half_rate: float = 0.3, good_stable_tracks: int = 300, good_texture: float = 0.5, good_coverage: float = 0.6, good_distinct: float = 0.4, repeated_distinct: float = 0.15, lookalike: float = 0.25, train: TrainOptions | dict[str, Any] = ..., match: MatchOptions | dict[str, Any] = ..., min_size: float = 60.0, max_size: float = 620.0, size_tilt: float = 40.0, max_tilt: float = 75.0, tilt_size_min: float = 200.0, tilt_size_max: float = 400.0, scene: CameraSceneOptions | dict[str, Any] = ...) -> QualityReport:
     """Target quality as `mvkp quality`: trains, matches synthetic views, scores 0..100 with reasons. Keyword arguments are QualityOptions fields (test_views=120, ...)."""
 
 def augment(keypoints: numpy.ndarray, descriptors: numpy.ndarray, options: AugmentOptions | None = None, *, k: int = 5, ties: TieMode | str = 'local', max_tie_iterations: int = 5) -> numpy.ndarray:
@@ -986,7 +1053,7 @@ def make_city(seed: int, options: CityOptions | None = None, *, width: int = 100
 def make_scene_view(target: numpy.ndarray, seed: int, background: numpy.ndarray | None = None, options: SceneOptions | None = None, *, width: int = 640, height: int = 480, min_scale: float = 0.4, max_scale: float = 1.6, perspective: float = 0.1, clutter: bool = True, lighting: bool = True, max_blur: float = 1.2, max_noise: float = 5.0, target_max_side: int = 320) -> tuple:
     """A synthetic view of `target` (as given; see prepare_target) with clutter, lighting, blur and noise, reproducible from seed. Returns (image, H), H the 3x3 float64 target -> image homography. Keyword arguments are SceneOptions fields (width=640, height=480, perspective=0.1, ...)."""
 
-def match(model: Model, frame: numpy.ndarray, options: MatchOptions | None = None, *, max_points: int = 500, half_res_points: int = 250, retry_below_inliers: int = 40, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'accurate', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, index: str = 'exact') -> MatchResult:
+def match(model: Model, frame: numpy.ndarray, options: MatchOptions | None = None, *, working_size: int = 1280, max_points: int = 1000, grid_cells: int = 16, grid_share: float = 0.75, half_res_points: int = 250, retry_below_inliers: int = 40, upsample_points: int = 1000, tilt_factors: list[float] = ..., tilt_directions: int = 4, tilt_points: int = 600, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'prosac', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, refine: bool = True, refine_radius: float = 6.0, index: str = 'ivf', nprobe: int = 8) -> MatchResult:
     """One-off: builds a Matcher and matches one frame (use Matcher for many frames)."""
 
 def match_codes(codes1: numpy.ndarray, codes2: numpy.ndarray, metric: AugmentMetric = ..., ratio: float = 0.8) -> tuple:
@@ -995,7 +1062,7 @@ def match_codes(codes1: numpy.ndarray, codes2: numpy.ndarray, metric: AugmentMet
 def mean_corner_error(a: numpy.ndarray, b: numpy.ndarray, width: int, height: int) -> float:
     """Mean distance (px) between where two homographies put the corners of a width x height image."""
 
-def pair(image1: numpy.ndarray, image2: numpy.ndarray, method: str = 'mvkp', *, views: int = 100, locations: int = 200, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.4, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 640, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None, max_points: int = 500, half_res_points: int = 250, retry_below_inliers: int = 40, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'accurate', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, index: str = 'exact', ransac_px: float = 3.0, max_features: int = 0, cdikp: CdikpOptions | dict[str, Any] = ..., augment: AugmentOptions | dict[str, Any] = ..., metric: AugmentMetric | str = 'spearman') -> PairResult:
+def pair(image1: numpy.ndarray, image2: numpy.ndarray, method: str = 'mvkp', *, view_model: ViewModel | str = 'mixed', views: int = 100, camera_views: int = 40, camera_min_tilt: float = 50.0, locations: int = 200, level_locations: float = 0.5, levels: int = 0, min_apparent_size: int = 40, min_level_size: int = 48, level_min_scale: float = 0.5, level_max_scale: float = 1.0, max_tilt_deg: float = 80.0, frontal_share: float = 0.35, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.4, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 640, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None, working_size: int = 1280, max_points: int = 1000, grid_cells: int = 16, grid_share: float = 0.75, half_res_points: int = 250, retry_below_inliers: int = 40, upsample_points: int = 1000, tilt_factors: list[float] = ..., tilt_directions: int = 4, tilt_points: int = 600, ratio: float = 0.85, dynamic_goal: int = 0, dynamic_checks: int = 10, ratio_min: float = 0.6, ratio_max: float = 0.95, geometry: GeometryModel | str = 'homography', robust: RobustMethod | str = 'prosac', ransac_threshold: float = 4.0, ransac_iterations: int = 2000, ransac_confidence: float = 0.995, min_inliers: int = 10, refine: bool = True, refine_radius: float = 6.0, index: str = 'ivf', nprobe: int = 8, ransac_px: float = 3.0, max_features: int = 0, cdikp: CdikpOptions | dict[str, Any] = ..., augment: AugmentOptions | dict[str, Any] = ..., metric: AugmentMetric | str = 'spearman') -> PairResult:
     """Correspondences between two images and the homography image1 -> image2, as `mvkp pair`. method 'mvkp' trains on image1 (keywords: TrainOptions and MatchOptions fields); 'cdikp', 'sift', 'orb', 'akaze', 'aug-sift', 'aug-cdikp' extract both and ratio-test (keywords: PairMatchOptions fields first, e.g. ratio=0.8, then LocalFeatureOptions fields)."""
 
 def pair_methods() -> list[str]:
@@ -1016,10 +1083,10 @@ def read_optical(path: str) -> numpy.ndarray:
 def recognition_match_defaults() -> MatchOptions:
     """The MatchOptions recognition starts from (1000 points, dynamic ratio)."""
 
-def register_aerial(depth: numpy.ndarray, photo: numpy.ndarray, *, photo_max_side: int = 1200, depth_options: DepthSegmentOptions | None = None, optical_options: OpticalSegmentOptions | None = None, edge_options: EdgeEvidenceOptions | None = None, options: RegistrationOptions | None = None, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
+def register_aerial(depth: numpy.ndarray, photo: numpy.ndarray, *, photo_max_side: int = 1200, depth_options: DepthSegmentOptions | None = None, optical_options: OpticalSegmentOptions | None = None, edge_options: EdgeEvidenceOptions | None = None, options: RegistrationOptions | None = None, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
     """Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as `mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields (model='auto', min_regions=4, seed=1, ...); depth_options / optical_options are DepthSegmentOptions / OpticalSegmentOptions."""
 
-def register_contours(photo_regions: Any, depth_regions: Any, options: RegistrationOptions | None = None, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
+def register_contours(photo_regions: Any, depth_regions: Any, options: RegistrationOptions | None = None, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
     """Registers photo region contours onto depth region contours (lists of (n, 2) arrays, or the regions segment_optical / segment_depth return). Keyword arguments are RegistrationOptions fields."""
 
 def save_image(path: str, image: numpy.ndarray) -> None:
@@ -1034,7 +1101,7 @@ def segment_optical(photo: numpy.ndarray, options: OpticalSegmentOptions | None 
 def set_num_threads(n: int) -> None:
     """OpenCV worker threads used inside mvkp calls (the CLI uses 1 by default; 0 = sequential)."""
 
-def train(image: numpy.ndarray, options: TrainOptions | None = None, *, views: int = 100, locations: int = 200, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.4, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 640, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> Model:
+def train(image: numpy.ndarray, options: TrainOptions | None = None, *, view_model: ViewModel | str = 'mixed', views: int = 100, camera_views: int = 40, camera_min_tilt: float = 50.0, locations: int = 200, level_locations: float = 0.5, levels: int = 0, min_apparent_size: int = 40, min_level_size: int = 48, level_min_scale: float = 0.5, level_max_scale: float = 1.0, max_tilt_deg: float = 80.0, frontal_share: float = 0.35, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.4, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 640, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> Model:
     """Trains a target model from one image (HxW uint8 gray or HxWx3 BGR). Keyword arguments are TrainOptions fields (views=100, locations=200, seed=42, ...); `options` gives a TrainOptions to start from. Raises NoTextureError when the image has too few stable points. The GIL is released while training (a `progress` callback is called with the GIL held)."""
 
 def warp(src: numpy.ndarray, H: numpy.ndarray, width: int, height: int, border_value: int = 0) -> numpy.ndarray:

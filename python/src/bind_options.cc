@@ -14,6 +14,7 @@
 #include "mvkp/match/matcher.h"
 #include "mvkp/quality/quality.h"
 #include "mvkp/recognize/recognizer.h"
+#include "mvkp/synth/camera_view.h"
 #include "mvkp/synth/synth.h"
 #include "mvkp/train/trainer.h"
 
@@ -22,11 +23,14 @@ namespace mvkp::py_bindings {
 void BindOptions(py::module_& m) {
   BindEnum<Selection>(m, "Selection", {{"stability", Selection::kStability}, {"rifs", Selection::kRifs}},
                       "How view tracks are ranked before the best are kept (TrainOptions.select).");
+  BindEnum<ViewModel>(m, "ViewModel", {{"mixed", ViewModel::kMixed}, {"camera", ViewModel::kCamera}, {"affine", ViewModel::kAffine}},
+                      "Training views per pyramid level: affine + steep camera views, camera views only, or the thesis's affine views (TrainOptions.view_model).");
   BindEnum<GeometryModel>(m, "GeometryModel", {{"homography", GeometryModel::kHomography}, {"affine", GeometryModel::kAffine}},
                           "Geometry verified by the robust fit (MatchOptions.geometry).");
   BindEnum<RobustMethod>(m, "RobustMethod",
                          {{"ransac", RobustMethod::kRansac}, {"fast", RobustMethod::kFast},
-                          {"accurate", RobustMethod::kAccurate}, {"magsac", RobustMethod::kMagsac}},
+                          {"accurate", RobustMethod::kAccurate}, {"magsac", RobustMethod::kMagsac},
+                          {"prosac", RobustMethod::kProsac}},
                          "Robust estimator from OpenCV's calib3d (MatchOptions.robust).");
   BindEnum<RecognizerSearch>(m, "RecognizerSearch", {{"words", RecognizerSearch::kWords}, {"exact", RecognizerSearch::kExact}},
                              "Recognition search: exact (one FFVA index over all centres) or words (inverted file).");
@@ -108,6 +112,14 @@ void BindOptions(py::module_& m) {
       ;
   AddOptionsMethods(scene);
   scene.def("check", &SceneOptions::Check);
+
+  py::class_<CameraSceneOptions> cscene(m, "CameraSceneOptions",
+                                       "mvkp::CameraSceneOptions: camera-model test frames (mvkp eval sweep, quality).");
+  cscene
+#include "fields/CameraSceneOptions.inc"
+      ;
+  AddOptionsMethods(cscene);
+  cscene.def("check", &CameraSceneOptions::Check);
 
   py::class_<QualityOptions> quality(m, "QualityOptions", "mvkp::QualityOptions: target quality assessment.");
   quality

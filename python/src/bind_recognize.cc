@@ -28,16 +28,10 @@ struct PyRecognizer {
   mutable std::shared_mutex mu;
 };
 
-// The kind under which `mvkp db add` stores Recognizer::Encode bytes, and the
-// training defaults of `mvkp db add` (apps/mvkp/db_load.{h,cc}: kWordsEncoding,
-// DbTrainDefaults(), which are not in the library).
+// The kind under which `mvkp db add` stores Recognizer::Encode bytes
+// (apps/mvkp/db_load.h: kWordsEncoding, which is not in the library).
 constexpr const char* kWordsEncoding = "words";
-TrainOptions DbTrainDefaults() {
-  TrainOptions t;
-  t.max_object_side = 320;
-  t.min_scale = 0.25;
-  return t;
-}
+TrainOptions DbTrainDefaults() { return RecognitionTrainDefaults(); }
 
 // TargetStore with close(): every use after close() raises ValueError.
 struct PyDatabase {
@@ -299,7 +293,7 @@ void BindRecognize(py::module_& m) {
           py::arg("year") = "", py::arg("url") = "", py::arg("meta") = py::none(), py::arg("image_bytes") = py::none(),
           py::arg("options") = py::none(),
           "Trains a target from `image` and adds it, as `mvkp db add` (its training defaults: max_object_side=320, "
-          "min_scale=0.25; other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. "
+          "other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. "
           "image_bytes: the encoded image to store (default: `image` as PNG).")
       .def("remove", [](PyDatabase& d, const std::string& id) { return d.get().Remove(id); }, py::arg("id"),
            "Removes a target; False if there was none.")

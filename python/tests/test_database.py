@@ -27,15 +27,17 @@ def test_database_roundtrip(tmp_path, target):
             ro.add("x", target)
         # The word search (compact, for thousands of targets) finds fewer of
         # these hard views (scale 0.4-1.6, perspective, clutter) than the exact one.
-        for search, seeds in (("exact", [1, 3, 8]), ("words", [2, 4, 5])):
+        h, w = target.shape
+        for search, need in (("exact", 8), ("words", 6)):
             rec = ro.recognizer(search=search)
             assert len(rec) == 2 and str(rec.options.search) == search
-            for seed in seeds:
+            ok = 0
+            for seed in range(1, 11):
                 frame, H = mvkp.make_scene_view(target, seed)
                 res = rec.recognize(frame)
-                assert res.ids[:1] == ["starry"], (search, seed, res)
-                h, w = target.shape
-                assert mvkp.mean_corner_error(res.found[0].homography, H, w, h) < 5.0
+                assert res.ids[:1] in ([], ["starry"]), (search, seed, res)  # never the other exhibit
+                ok += bool(res.found) and mvkp.mean_corner_error(res.found[0].homography, H, w, h) < 5.0
+            assert ok >= need, (search, ok)
     with mvkp.Database(path, writable=True) as rw:
         assert rw.remove("baboon") and not rw.remove("baboon")
         assert len(rw) == 1

@@ -92,7 +92,7 @@ def test_options_and_keywords_combine(model):
     base = mvkp.MatchOptions(ratio=0.7)
     m = mvkp.Matcher(model, base, max_points=300)
     assert m.options.ratio == pytest.approx(0.7) and m.options.max_points == 300
-    assert base.max_points == 500  # the given options are copied, not modified
+    assert base.max_points == 1000  # the given options are copied, not modified
 
 
 def test_closed_database(tmp_path, target):

@@ -78,8 +78,10 @@ def test_pair_mvkp_and_cdikp(target):
 
 def test_train_progress_callback(target):
     calls = []
-    mvkp.train(target, views=20, locations=50, progress=lambda d, t: calls.append((d, t)))
-    assert calls and calls[-1] == (20, 20)
+    mvkp.train(target, views=20, camera_views=10, levels=2, locations=50, progress=lambda d, t: calls.append((d, t)))
+    # Over both pyramid levels: 20 affine + 10 camera views each.
+    assert calls and calls[-1] == (60, 60)
+    assert all(t == 60 for _, t in calls) and [d for d, _ in calls] == sorted(d for d, _ in calls)
 
 
 def test_cdikp_and_augment(target):

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mvkp/core/error.h"
+#include "mvkp/detect/internal/detect_kernels.h"
 
 namespace mvkp {
 
@@ -19,6 +20,8 @@ void DetectorOptions::Check() const {
           "detector: min_distance must be in [0, 100]");
   Require(border >= 1, ErrorCode::kInvalidArgument, "detector: border must be >= 1");
   Require(block_size >= 2 && block_size <= 15, ErrorCode::kInvalidArgument, "detector: block_size must be in 2..15");
+  Require(grid_cells >= 1 && grid_cells <= 256, ErrorCode::kInvalidArgument, "detector: grid_cells must be in 1..256");
+  Require(grid_share >= 0.f && grid_share <= 1.f, ErrorCode::kInvalidArgument, "detector: grid_share must be in [0, 1]");
 }
 
 void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
@@ -30,46 +33,22 @@ void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
   // Products of Sobel gradients summed over 3 columns, kept for the last three
   // rows; summing those gives the 3x3 structure tensor. Float arithmetic is
   // exact here (|g| <= 1020, so sums of 9 products stay below 2^24) and
-  // vectorises with SSE2, unlike 32-bit integer multiplies.
+  // vectorises, unlike 32-bit integer multiplies.
+  static const internal::GradientRowFn gradient_row = internal::BestGradientRow();
+  static const internal::EigenRowFn eigen_row = internal::BestEigenRow();
   std::vector<float> buf(std::size_t(9) * W, 0.f);
-  std::vector<float> gx(W), gy(W), pxx(W), pxy(W), pyy(W);
+  std::vector<float> pxx(W), pxy(W), pyy(W);
   auto row_of = [&](int r, int k) { return &buf[(std::size_t(r % 3) * 3 + k) * W]; };
   // OpenCV's normalisation for 8-bit input, aperture 3, block 3: 1 / (4 * 3 * 255).
   const float s = 1.f / (4.f * 3.f * 255.f);
   const float s2 = s * s;
   for (int y = 1; y < H - 1; ++y) {
-    const std::uint8_t* a = gray.ptr<std::uint8_t>(y - 1);
-    const std::uint8_t* b = gray.ptr<std::uint8_t>(y);
-    const std::uint8_t* c = gray.ptr<std::uint8_t>(y + 1);
-    for (int x = 1; x < W - 1; ++x) {
-      gx[x] = float((a[x + 1] - a[x - 1]) + 2 * (b[x + 1] - b[x - 1]) + (c[x + 1] - c[x - 1]));
-      gy[x] = float((c[x - 1] - a[x - 1]) + 2 * (c[x] - a[x]) + (c[x + 1] - a[x + 1]));
-    }
-    for (int x = 1; x < W - 1; ++x) {
-      pxx[x] = gx[x] * gx[x];
-      pxy[x] = gx[x] * gy[x];
-      pyy[x] = gy[x] * gy[x];
-    }
-    float* hxx = row_of(y, 0);
-    float* hxy = row_of(y, 1);
-    float* hyy = row_of(y, 2);
-    for (int x = 2; x < W - 2; ++x) {
-      hxx[x] = pxx[x - 1] + pxx[x] + pxx[x + 1];
-      hxy[x] = pxy[x - 1] + pxy[x] + pxy[x + 1];
-      hyy[x] = pyy[x - 1] + pyy[x] + pyy[x + 1];
-    }
+    gradient_row(gray.ptr<std::uint8_t>(y - 1), gray.ptr<std::uint8_t>(y), gray.ptr<std::uint8_t>(y + 1), W, pxx.data(),
+                 pxy.data(), pyy.data(), row_of(y, 0), row_of(y, 1), row_of(y, 2));
     if (y < 3) continue;
     // Rows y-2, y-1, y are complete: the tensor for row y-1.
-    const float *a0 = row_of(y - 2, 0), *a1 = row_of(y - 1, 0), *a2 = row_of(y, 0);
-    const float *b0 = row_of(y - 2, 1), *b1 = row_of(y - 1, 1), *b2 = row_of(y, 1);
-    const float *c0 = row_of(y - 2, 2), *c1 = row_of(y - 1, 2), *c2 = row_of(y, 2);
-    float* out = eig.ptr<float>(y - 1);
-    for (int x = 2; x < W - 2; ++x) {
-      const float A = (a0[x] + a1[x] + a2[x]) * (0.5f * s2);
-      const float B = (b0[x] + b1[x] + b2[x]) * s2;
-      const float C = (c0[x] + c1[x] + c2[x]) * (0.5f * s2);
-      out[x] = (A + C) - std::sqrt((A - C) * (A - C) + B * B);
-    }
+    eigen_row(row_of(y - 2, 0), row_of(y - 1, 0), row_of(y, 0), row_of(y - 2, 1), row_of(y - 1, 1), row_of(y, 1),
+              row_of(y - 2, 2), row_of(y - 1, 2), row_of(y, 2), 2, W - 2, s2, eig.ptr<float>(y - 1));
   }
 }
 
@@ -87,26 +66,51 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
     cv::cornerMinEigenVal(gray, eig, opt.block_size, 3, cv::BORDER_REFLECT_101);
   double maxv = 0;
   cv::minMaxLoc(eig, nullptr, &maxv, nullptr, nullptr, mask);
-  const float thresh = std::max(opt.min_strength, float(maxv) * opt.relative_threshold);
-  if (maxv < thresh || maxv <= 0) return out;
+  if (maxv < opt.min_strength || maxv <= 0) return out;
+  // The relative threshold: of the frame's strongest response, or with the
+  // grid of each cell's, so a dim region in a bright frame keeps its corners.
+  const bool by_cell = opt.grid_share > 0 && opt.grid_cells > 1;
+  const double cell_side = double(std::max(gray.cols, gray.rows)) / opt.grid_cells;
+  const int gcw = by_cell ? std::max(1, int(std::ceil(gray.cols / cell_side))) : 1;
+  const int gch = by_cell ? std::max(1, int(std::ceil(gray.rows / cell_side))) : 1;
+  std::vector<float> cell_thresh(std::size_t(gcw) * gch, std::max(opt.min_strength, float(maxv) * opt.relative_threshold));
+  std::vector<float> cell_max(std::size_t(gcw) * gch, float(maxv));
+  float thresh = cell_thresh[0];
+  if (by_cell) {
+    thresh = opt.min_strength;
+    for (int cy = 0; cy < gch; ++cy)
+      for (int cx = 0; cx < gcw; ++cx) {
+        const int x0 = int(cx * cell_side), y0 = int(cy * cell_side);
+        const cv::Rect r(x0, y0, std::min(gray.cols, int((cx + 1) * cell_side)) - x0,
+                         std::min(gray.rows, int((cy + 1) * cell_side)) - y0);
+        if (r.width <= 0 || r.height <= 0) continue;
+        double cm = 0;
+        cv::minMaxLoc(eig(r), nullptr, &cm, nullptr, nullptr, mask.empty() ? cv::noArray() : mask(r));
+        cell_thresh[std::size_t(cy) * gcw + cx] = std::max(opt.min_strength, float(cm) * opt.relative_threshold);
+        cell_max[std::size_t(cy) * gcw + cx] = std::max(float(cm), 1e-12f);
+      }
+  }
 
   // Local maxima over 3x3: strictly greater than the previous row/left
   // neighbours and not smaller than the following ones, so plateaus give one point.
+  static const internal::NmsRowFn nms_row = internal::BestNmsRow();
   std::vector<Keypoint> cand;
   cand.reserve(4096);
+  std::vector<int> cols;
+  cols.reserve(std::size_t(gray.cols));
   const int b = std::max(opt.border, 1);
   for (int y = b; y < eig.rows - b; ++y) {
     const float* up = eig.ptr<float>(y - 1);
     const float* c = eig.ptr<float>(y);
     const float* dn = eig.ptr<float>(y + 1);
     const std::uint8_t* m = mask.empty() ? nullptr : mask.ptr<std::uint8_t>(y);
-    for (int x = b; x < eig.cols - b; ++x) {
-      const float v = c[x];
-      if (v < thresh) continue;
-      if (!(v > c[x - 1] && v >= c[x + 1] && v > up[x - 1] && v > up[x] && v > up[x + 1] && v >= dn[x - 1] &&
-            v >= dn[x] && v >= dn[x + 1]))
-        continue;
+    cols.clear();
+    nms_row(up, c, dn, b, eig.cols - b, thresh, cols);
+    const int cy = by_cell ? std::min(gch - 1, int(y / cell_side)) : 0;
+    for (const int x : cols) {
       if (m && !m[x]) continue;
+      const float v = c[x];
+      if (by_cell && v < cell_thresh[std::size_t(cy) * gcw + std::min(gcw - 1, int(x / cell_side))]) continue;
       // Sub-pixel position: vertex of the parabola through the 3 responses per axis.
       const float dxx = c[x - 1] - 2 * v + c[x + 1], dyy = up[x] - 2 * v + dn[x];
       const float ox = dxx < 0 ? std::clamp(0.5f * (c[x - 1] - c[x + 1]) / dxx, -0.5f, 0.5f) : 0.f;
@@ -118,31 +122,71 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
     return a.strength > b.strength || (a.strength == b.strength && (a.y < b.y || (a.y == b.y && a.x < b.x)));
   });
 
-  // Greedy minimum spacing on a grid of cells of side min_distance.
-  const float md = opt.min_distance;
-  if (md < 1.f) {
-    if (int(cand.size()) > opt.max_points) cand.resize(opt.max_points);
-    return cand;
-  }
+  // Greedy minimum spacing on a grid of cells of side min_distance, first
+  // with a quota per coarse cell, then for the rest of the budget.
+  const float md = std::max(opt.min_distance, 0.f);
   const int cell = std::max(1, int(std::ceil(md)));
   const int gw = (gray.cols + cell - 1) / cell, gh = (gray.rows + cell - 1) / cell;
-  std::vector<std::vector<int>> grid(std::size_t(gw) * gh);
+  std::vector<std::vector<int>> grid(md >= 1.f ? std::size_t(gw) * gh : 0);
   const float md2 = md * md;
-  out.reserve(std::min<std::size_t>(cand.size(), opt.max_points));
-  for (const auto& k : cand) {
+  std::vector<char> taken(cand.size(), 0);
+  std::vector<int> chosen;
+  chosen.reserve(std::min<std::size_t>(cand.size(), opt.max_points));
+  auto spaced = [&](const Keypoint& k) {
+    if (md < 1.f) return true;
     const int gx = int(k.x) / cell, gy = int(k.y) / cell;
-    bool ok = true;
-    for (int yy = std::max(0, gy - 1); yy <= std::min(gh - 1, gy + 1) && ok; ++yy)
-      for (int xx = std::max(0, gx - 1); xx <= std::min(gw - 1, gx + 1) && ok; ++xx)
+    for (int yy = std::max(0, gy - 1); yy <= std::min(gh - 1, gy + 1); ++yy)
+      for (int xx = std::max(0, gx - 1); xx <= std::min(gw - 1, gx + 1); ++xx)
         for (int id : grid[std::size_t(yy) * gw + xx]) {
-          const float dx = out[id].x - k.x, dy = out[id].y - k.y;
-          if (dx * dx + dy * dy < md2) { ok = false; break; }
+          const float dx = cand[id].x - k.x, dy = cand[id].y - k.y;
+          if (dx * dx + dy * dy < md2) return false;
         }
-    if (!ok) continue;
-    grid[std::size_t(gy) * gw + gx].push_back(int(out.size()));
-    out.push_back(k);
-    if (int(out.size()) >= opt.max_points) break;
+    return true;
+  };
+  auto take = [&](int i) {
+    taken[i] = 1;
+    chosen.push_back(i);
+    if (md >= 1.f) grid[std::size_t(int(cand[i].y) / cell) * gw + int(cand[i].x) / cell].push_back(i);
+  };
+  const int budget = opt.max_points;
+  const int quota_total = int(std::lround(double(opt.grid_share) * budget));
+  if (quota_total > 0 && opt.grid_cells > 1) {
+    const double side = double(std::max(gray.cols, gray.rows)) / opt.grid_cells;
+    const int cw = std::max(1, int(std::ceil(gray.cols / side))), ch = std::max(1, int(std::ceil(gray.rows / side)));
+    // Round by round: every cell's strongest, then every cell's next, ...;
+    // within a round, strongest relative to its own cell first. A cell of
+    // weak corners gets its turn however strong the others are.
+    std::vector<std::vector<int>> bucket(std::size_t(cw) * ch);
+    for (int i = 0; i < int(cand.size()); ++i) {
+      const int cx = std::min(cw - 1, int(cand[i].x / side)), cy = std::min(ch - 1, int(cand[i].y / side));
+      bucket[std::size_t(cy) * cw + cx].push_back(i);
+    }
+    std::vector<std::size_t> next(bucket.size(), 0);
+    std::vector<int> round;
+    while (int(chosen.size()) < quota_total) {
+      round.clear();
+      for (std::size_t b = 0; b < bucket.size(); ++b) {
+        // The cell's next candidate that keeps the spacing.
+        while (next[b] < bucket[b].size() && !spaced(cand[bucket[b][next[b]]])) ++next[b];
+        if (next[b] < bucket[b].size()) round.push_back(bucket[b][next[b]++]);
+      }
+      if (round.empty()) break;
+      auto rel = [&](int i) {
+        const int cx = std::min(cw - 1, int(cand[i].x / side)), cy = std::min(ch - 1, int(cand[i].y / side));
+        return cand[i].strength / cell_max[std::size_t(cy) * cw + cx];
+      };
+      std::stable_sort(round.begin(), round.end(), [&](int a, int b) { return rel(a) > rel(b); });
+      for (int i : round) {
+        if (int(chosen.size()) >= quota_total) break;
+        if (spaced(cand[i])) take(i);
+      }
+    }
   }
+  for (int i = 0; i < int(cand.size()) && int(chosen.size()) < budget; ++i)
+    if (!taken[i] && spaced(cand[i])) take(i);
+  std::sort(chosen.begin(), chosen.end());  // candidates are strongest first
+  out.reserve(chosen.size());
+  for (int i : chosen) out.push_back(cand[i]);
   return out;
 }
 

@@ -26,6 +26,14 @@ struct DetectorOptions {
   float min_distance = 3.f;          // no two points closer than this (pixels)
   int border = 8;                    // ignore this many pixels at the image border
   int block_size = 3;                // structure tensor window
+  // Every part of the frame gets a share: the image is cut into square cells
+  // (grid_cells along its longer side) and a first pass takes, in each cell,
+  // its strongest points up to an equal quota of grid_share * max_points;
+  // the rest of the budget goes to the strongest remaining points anywhere.
+  // A low-contrast target in a high-contrast scene then still gets points
+  // (issue 18). grid_share 0: the N strongest of the frame (thesis).
+  int grid_cells = 8;
+  float grid_share = 0.5f;
   void Check() const;                // throws mvkp::Error(kInvalidArgument)
 };
 

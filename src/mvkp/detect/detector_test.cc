@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/detect/internal/detect_kernels.h"
+
 namespace mvkp {
 namespace {
 
@@ -66,6 +68,81 @@ TEST(Detector, MaskRestrictsDetections) {
   cv::Mat mask = cv::Mat::zeros(img.size(), CV_8UC1);
   mask(cv::Rect(0, 0, 100, 160)).setTo(255);
   for (const auto& k : DetectMinEigen(img, {}, mask)) EXPECT_LT(k.x, 100);
+}
+
+}  // namespace
+}  // namespace mvkp
+
+namespace mvkp {
+namespace {
+
+// Dots of contrast `c` on grey over the rectangle r.
+void Dots(cv::Mat& img, cv::Rect r, int contrast, std::uint64_t seed) {
+  cv::RNG rng(seed);
+  for (int i = 0; i < r.area() / 150; ++i) {
+    const cv::Point p(r.x + rng.uniform(0, r.width), r.y + rng.uniform(0, r.height));
+    cv::rectangle(img, p, p + cv::Point(rng.uniform(2, 6), rng.uniform(2, 6)), cv::Scalar(128 + contrast), -1);
+  }
+}
+
+TEST(Detector, GridQuotaGivesALowContrastRegionItsShare) {
+  // A busy high-contrast frame with a small low-contrast patch (a dim
+  // painting in a bright street): the N strongest all land in the busy part.
+  cv::Mat img(480, 640, CV_8UC1, cv::Scalar(128));
+  Dots(img, cv::Rect(0, 0, 640, 480), 110, 1);
+  const cv::Rect dim(400, 240, 160, 120);  // 12 of the 16 x 12 cells of 40 px
+  img(dim).setTo(128);
+  Dots(img, dim, 12, 2);
+  cv::GaussianBlur(img, img, cv::Size(), 1.0);
+  auto on = [&](const std::vector<Keypoint>& kps) {
+    int n = 0;
+    for (const auto& k : kps) n += dim.contains(cv::Point(int(k.x), int(k.y)));
+    return n;
+  };
+  DetectorOptions o;
+  o.max_points = 500;
+  o.grid_share = 0;
+  const int strongest = on(DetectMinEigen(img, o));
+  o.grid_share = 0.75f;
+  o.grid_cells = 16;
+  const auto spread = DetectMinEigen(img, o);
+  EXPECT_LE(spread.size(), 500u);
+  EXPECT_LT(strongest, 5);
+  EXPECT_GE(on(spread), 15);  // about its cells' share of the quota (2 each)
+  for (std::size_t i = 1; i < spread.size(); ++i) EXPECT_GE(spread[i - 1].strength, spread[i].strength);
+}
+
+TEST(DetectKernels, Avx2EqualsScalar) {
+  if (internal::BestNmsRow() == internal::NmsRowScalar) GTEST_SKIP() << "no AVX2 on this CPU";
+  cv::Mat img(53, 203, CV_8UC1);
+  cv::RNG(9).fill(img, cv::RNG::UNIFORM, 0, 256);
+  const int W = img.cols;
+  std::vector<float> a(W), b(W), c(W), d(W), e(W), f(W), g(W), h(W), i(W), j(W), k(W), l(W);
+  internal::GradientRowScalar(img.ptr(10), img.ptr(11), img.ptr(12), W, a.data(), b.data(), c.data(), d.data(),
+                              e.data(), f.data());
+  internal::GradientRowAvx2(img.ptr(10), img.ptr(11), img.ptr(12), W, g.data(), h.data(), i.data(), j.data(), k.data(),
+                            l.data());
+  for (int x = 2; x < W - 2; ++x) {
+    EXPECT_EQ(d[x], j[x]);
+    EXPECT_EQ(e[x], k[x]);
+    EXPECT_EQ(f[x], l[x]);
+  }
+  std::vector<float> o1(W), o2(W);
+  internal::EigenRowScalar(d.data(), j.data(), d.data(), e.data(), k.data(), e.data(), f.data(), l.data(), f.data(), 2,
+                           W - 2, 1e-6f, o1.data());
+  internal::EigenRowAvx2(d.data(), j.data(), d.data(), e.data(), k.data(), e.data(), f.data(), l.data(), f.data(), 2,
+                         W - 2, 1e-6f, o2.data());
+  for (int x = 2; x < W - 2; ++x) EXPECT_EQ(o1[x], o2[x]);
+  cv::Mat eig;
+  cv::Mat s;
+  cv::GaussianBlur(img, s, cv::Size(), 1.0);
+  MinEigen3x3(s, eig);
+  for (int y = 1; y < eig.rows - 1; ++y) {
+    std::vector<int> p, q;
+    internal::NmsRowScalar(eig.ptr<float>(y - 1), eig.ptr<float>(y), eig.ptr<float>(y + 1), 1, W - 1, 1e-5f, p);
+    internal::NmsRowAvx2(eig.ptr<float>(y - 1), eig.ptr<float>(y), eig.ptr<float>(y + 1), 1, W - 1, 1e-5f, q);
+    EXPECT_EQ(p, q) << "row " << y;
+  }
 }
 
 }  // namespace

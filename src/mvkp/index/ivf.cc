@@ -52,7 +52,8 @@ IvfIndex::IvfIndex(const float* centroids, std::size_t ncentroids, int dim, cons
   impl_->ncentroids = ncentroids;
   std::vector<std::int32_t> ids(ncentroids);
   std::iota(ids.begin(), ids.end(), 0);
-  impl_->coarse = MakeIndexByName("exact");
+  // A few hundred centroids are scanned faster than FFVA's tree is walked.
+  impl_->coarse = ncentroids <= 256 ? MakeBruteForceIndex() : MakeIndexByName("exact");
   impl_->coarse->Build(centroids, ncentroids, dim, ids.data());
   impl_->two = internal::BestTwoDistinctNorm();
   impl_->l2 = internal::BestL2Blocks8();

@@ -28,16 +28,28 @@ void TwoDistinctNormQ(const float* blocks, const float* norms, const std::int32_
     bound[k] = _mm256_set1_ps(t[k].Bound());
     qn[k] = _mm256_set1_ps(qnorms[k]);
   }
+  // -2 q, once: the inner loop then broadcasts straight from memory.
+  float qm2[Q * 128];
+  const bool small = dim <= 128;
+  if (small)
+    for (int i = 0; i < Q * dim; ++i) qm2[i] = -2.f * queries[i];
   const __m256 zero = _mm256_setzero_ps();
   for (std::size_t b = 0; b < nblocks; ++b) {
     const float* blk = blocks + b * std::size_t(dim) * kLanes;
     const __m256 xn = _mm256_loadu_ps(norms + b * kLanes);
     __m256 acc[Q];
     for (int k = 0; k < Q; ++k) acc[k] = _mm256_add_ps(xn, qn[k]);
-    for (int d = 0; d < dim; ++d) {
-      const __m256 row = _mm256_loadu_ps(blk + d * kLanes);
-      for (int k = 0; k < Q; ++k)
-        acc[k] = _mm256_fmadd_ps(_mm256_set1_ps(-2.f * queries[k * dim + d]), row, acc[k]);
+    if (small) {
+      for (int d = 0; d < dim; ++d) {
+        const __m256 row = _mm256_loadu_ps(blk + d * kLanes);
+        for (int k = 0; k < Q; ++k) acc[k] = _mm256_fmadd_ps(_mm256_broadcast_ss(qm2 + k * dim + d), row, acc[k]);
+      }
+    } else {
+      for (int d = 0; d < dim; ++d) {
+        const __m256 row = _mm256_loadu_ps(blk + d * kLanes);
+        for (int k = 0; k < Q; ++k)
+          acc[k] = _mm256_fmadd_ps(_mm256_set1_ps(-2.f * queries[k * dim + d]), row, acc[k]);
+      }
     }
     for (int k = 0; k < Q; ++k) {
       int mask = _mm256_movemask_ps(_mm256_cmp_ps(acc[k], bound[k], _CMP_LT_OQ));

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -10,11 +11,23 @@
 #include "mvkp/core/timer.h"
 #include "mvkp/describe/features.h"
 #include "mvkp/index/ffva.h"
+#include "mvkp/index/ivf.h"
+#include "mvkp/index/kmeans.h"
 
 namespace mvkp {
 
 void MatchOptions::Check() const {
   Require(max_points >= 4 && max_points <= 100000, ErrorCode::kInvalidArgument, "max points must be in 4..100000");
+  Require(working_size == 0 || (working_size >= 64 && working_size <= 65536), ErrorCode::kInvalidArgument,
+          "working size must be 0 or in 64..65536");
+  Require(upsample_points >= 0 && upsample_points <= 100000, ErrorCode::kInvalidArgument,
+          "upsample points must be in 0..100000");
+  Require(tilt_directions >= 0 && tilt_directions <= 64, ErrorCode::kInvalidArgument, "tilt directions must be in 0..64");
+  Require(tilt_points >= 4 && tilt_points <= 100000, ErrorCode::kInvalidArgument, "tilt points must be in 4..100000");
+  for (float t : tilt_factors)
+    Require(t >= 1.1f && t <= 8.f, ErrorCode::kInvalidArgument, "tilt factors must be in [1.1, 8]");
+  Require(grid_cells >= 1 && grid_cells <= 256, ErrorCode::kInvalidArgument, "grid cells must be in 1..256");
+  Require(grid_share >= 0.f && grid_share <= 1.f, ErrorCode::kInvalidArgument, "grid share must be in [0, 1]");
   Require(half_res_points >= 0 && half_res_points <= 100000, ErrorCode::kInvalidArgument,
           "half-resolution points must be in 0..100000");
   Require(retry_below_inliers >= 0, ErrorCode::kInvalidArgument, "retry threshold must be >= 0");
@@ -26,8 +39,9 @@ void MatchOptions::Check() const {
   Require(ransac_threshold > 0 && ransac_threshold <= 100, ErrorCode::kInvalidArgument, "RANSAC threshold must be in (0, 100]");
   Require(ransac_iterations >= 1 && ransac_iterations <= 1000000, ErrorCode::kInvalidArgument, "RANSAC iterations must be in 1..1e6");
   Require(ransac_confidence > 0 && ransac_confidence < 1, ErrorCode::kInvalidArgument, "RANSAC confidence must be in (0, 1)");
-  Require(index == "exact" || index == "approx" || index == "brute", ErrorCode::kInvalidArgument,
-          "index must be exact, approx or brute");
+  Require(index == "exact" || index == "approx" || index == "brute" || index == "ivf", ErrorCode::kInvalidArgument,
+          "index must be ivf, exact, approx or brute");
+  Require(nprobe >= 1 && nprobe <= 4096, ErrorCode::kInvalidArgument, "nprobe must be in 1..4096");
   Require(min_inliers >= 4, ErrorCode::kInvalidArgument, "min inliers must be >= 4");
 }
 
@@ -56,17 +70,76 @@ bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& q, double min_area) {
   return std::abs(cv::contourArea(poly)) >= min_area;
 }
 
+std::vector<std::int32_t> LocationPlaces(const Model& model) {
+  const int n = int(model.locations.size());
+  std::vector<std::int32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  if (model.params.levels > 1) {
+    // Grid over the object with cells as large as the widest join radius.
+    float reach = 0;
+    for (const auto& l : model.locations) reach = std::max(reach, 2.f * l.scale);
+    const float cell = std::max(1.f, reach);
+    const int gw = int(model.object_width / cell) + 2, gh = int(model.object_height / cell) + 2;
+    std::vector<std::vector<int>> grid(std::size_t(gw) * gh);
+    auto cell_of = [&](float v, int lim) { return std::clamp(int(v / cell), 0, lim - 1); };
+    for (int i = 0; i < n; ++i)
+      grid[std::size_t(cell_of(model.locations[i].y, gh)) * gw + cell_of(model.locations[i].x, gw)].push_back(i);
+    for (int i = 0; i < n; ++i) {
+      const auto& a = model.locations[i];
+      const int cx = cell_of(a.x, gw), cy = cell_of(a.y, gh);
+      for (int yy = std::max(0, cy - 1); yy <= std::min(gh - 1, cy + 1); ++yy)
+        for (int xx = std::max(0, cx - 1); xx <= std::min(gw - 1, cx + 1); ++xx)
+          for (int j : grid[std::size_t(yy) * gw + xx]) {
+            if (j <= i) continue;
+            const auto& b = model.locations[j];
+            if (a.level == b.level) continue;
+            const float r = 2.f * std::max(a.scale, b.scale);
+            if ((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) <= r * r) parent[find(i)] = find(j);
+          }
+    }
+  }
+  std::vector<std::int32_t> place(n);
+  for (int i = 0; i < n; ++i) place[i] = find(i);
+  return place;
+}
+
 Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_ptr<KnnIndex> index)
     : model_(model), options_(options), index_(std::move(index)) {
   options_.Check();
   model_.Validate("model");
+  if (!index_ && options_.index == "ivf") {
+    // Coarse quantiser: k-means over (a stride sample of) the model's centres.
+    const int m = model_.descriptors.rows, d = model_.params.dims;
+    const int nlist = std::clamp(int(std::lround(std::sqrt(double(m)))), 1, 256);
+    const int step = std::max(1, m / 4096);
+    std::vector<float> sample;
+    for (int i = 0; i < m; i += step)
+      sample.insert(sample.end(), model_.descriptors.ptr<float>(i), model_.descriptors.ptr<float>(i) + d);
+    std::vector<float> centroids;
+    KMeans(sample.data(), int(sample.size() / std::size_t(d)), d, nlist, 8, 1, centroids);
+    if (centroids.empty()) centroids.assign(std::size_t(d), 0.f);
+    IvfOptions io;
+    io.nprobe = options_.nprobe;
+    index_ = std::make_unique<IvfIndex>(centroids.data(), centroids.size() / std::size_t(d), d, io);
+  }
   if (!index_) index_ = MakeIndexByName(options_.index);
+  const std::vector<std::int32_t> place = LocationPlaces(model_);
+  places_.resize(model_.labels.size());
+  for (std::size_t i = 0; i < places_.size(); ++i) places_[i] = place[model_.labels[i]];
+  location_rows_.assign(model_.locations.size(), {});
+  for (std::size_t i = 0; i < model_.labels.size(); ++i) location_rows_[model_.labels[i]].push_back(int(i));
   index_->Build(model_.descriptors.ptr<float>(), std::size_t(model_.descriptors.rows), model_.params.dims,
-                model_.labels.data());
+                places_.data());
 }
 
-FeatureOptions QueryFeatureOptions(const ModelParams& p, int max_points) {
+FeatureOptions QueryFeatureOptions(const ModelParams& p, int max_points, int grid_cells, float grid_share) {
   FeatureOptions fo;
+  fo.detector.grid_cells = grid_cells;
+  fo.detector.grid_share = grid_share;
   fo.smooth_sigma = p.smooth_sigma;
   fo.detector.max_points = max_points;
   fo.detector.min_strength = p.min_strength;
@@ -105,9 +178,10 @@ void Matcher::SearchAndFilter(const Features& f, std::size_t first, MatchResult&
     const float d1 = std::sqrt(a.distance);
     const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
     if (!(d1 < ratio * d2)) continue;
-    const auto& loc = model_.locations[a.label];
+    const int location = model_.labels[a.id];
+    const auto& loc = model_.locations[location];
     const auto& kp = f.keypoints[first + i];
-    r.matches.push_back({{loc.x, loc.y}, {kp.x, kp.y}, d1, a.label, false});
+    r.matches.push_back({{loc.x, loc.y}, {kp.x, kp.y}, d1, d2 > 0 ? d1 / d2 : 0.f, location, false});
   }
   r.final_ratio = ratio;
   r.time.search_ms += t.ElapsedMs();
@@ -118,20 +192,42 @@ int CvMethod(RobustMethod m) {
     case RobustMethod::kRansac: return cv::RANSAC;
     case RobustMethod::kFast: return cv::USAC_FAST;
     case RobustMethod::kMagsac: return cv::USAC_MAGSAC;
+    case RobustMethod::kProsac: return cv::USAC_PROSAC;
     case RobustMethod::kAccurate: break;
   }
   return cv::USAC_ACCURATE;
+}
+
+cv::UsacParams ProsacParams(const MatchOptions& o) {
+  cv::UsacParams p;
+  p.confidence = o.ransac_confidence;
+  p.isParallel = false;
+  p.loIterations = 10;
+  p.loMethod = cv::LOCAL_OPTIM_GC;
+  p.loSampleSize = 14;
+  p.maxIterations = o.ransac_iterations;
+  p.neighborsSearch = cv::NEIGH_GRID;
+  p.randomGeneratorState = 0;
+  p.sampler = cv::SAMPLING_PROSAC;
+  p.score = cv::SCORE_METHOD_MSAC;
+  p.threshold = o.ransac_threshold;
+  return p;
 }
 
 GeometryFit FitGeometry(const std::vector<cv::Point2f>& src, const std::vector<cv::Point2f>& dst, const MatchOptions& o) {
   GeometryFit g;
   cv::Mat H;
   if (o.geometry == GeometryModel::kHomography) {
-    H = cv::findHomography(src, dst, CvMethod(o.robust), o.ransac_threshold, g.mask, o.ransac_iterations,
-                           o.ransac_confidence);
+    if (o.robust == RobustMethod::kProsac)
+      H = cv::findHomography(src, dst, g.mask, ProsacParams(o));
+    else
+      H = cv::findHomography(src, dst, CvMethod(o.robust), o.ransac_threshold, g.mask, o.ransac_iterations,
+                             o.ransac_confidence);
   } else {
-    cv::Mat A = cv::estimateAffine2D(src, dst, g.mask, CvMethod(o.robust), o.ransac_threshold,
-                                     std::size_t(o.ransac_iterations), o.ransac_confidence, 10);
+    cv::Mat A = o.robust == RobustMethod::kProsac
+                    ? cv::estimateAffine2D(src, dst, g.mask, ProsacParams(o))
+                    : cv::estimateAffine2D(src, dst, g.mask, CvMethod(o.robust), o.ransac_threshold,
+                                           std::size_t(o.ransac_iterations), o.ransac_confidence, 10);
     if (!A.empty()) {
       H = cv::Mat::eye(3, 3, CV_64F);
       A.copyTo(H.rowRange(0, 2));
@@ -151,19 +247,32 @@ std::array<cv::Point2f, 4> ProjectOutline(const cv::Matx33d& H, int width, int h
   return {out[0], out[1], out[2], out[3]};
 }
 
-void Matcher::Verify(MatchResult& r) const {
+void Matcher::QueryPoints::Add(const Features& f) {
+  for (const auto& k : f.keypoints) pts.emplace_back(k.x, k.y);
+  if (f.descriptors.rows)
+    desc.insert(desc.end(), f.descriptors.ptr<float>(), f.descriptors.ptr<float>() + f.descriptors.total());
+}
+
+void Matcher::Verify(MatchResult& r, const QueryPoints& q) const {
   Timer t;
   r.found = false;
   r.inliers = 0;
+  r.support = 0;
   for (auto& m : r.matches) m.inlier = false;
   const int minimal = options_.geometry == GeometryModel::kHomography ? 4 : 3;
   if (int(r.matches.size()) >= std::max(minimal, options_.min_inliers)) {
+    // PROSAC draws from the front: most distinctive (lowest ratio) first.
+    std::vector<int> order(r.matches.size());
+    std::iota(order.begin(), order.end(), 0);
+    if (options_.robust == RobustMethod::kProsac)
+      std::stable_sort(order.begin(), order.end(),
+                       [&](int a, int b) { return r.matches[a].ratio < r.matches[b].ratio; });
     std::vector<cv::Point2f> src, dst;
     src.reserve(r.matches.size());
     dst.reserve(r.matches.size());
-    for (const auto& m : r.matches) {
-      src.push_back(m.object);
-      dst.push_back(m.query);
+    for (int i : order) {
+      src.push_back(r.matches[i].object);
+      dst.push_back(r.matches[i].query);
     }
     const GeometryFit g = FitGeometry(src, dst, options_);
     if (g.ok) {
@@ -173,51 +282,341 @@ void Matcher::Verify(MatchResult& r) const {
         r.homography = g.homography;
         r.outline = quad;
         r.inliers = g.inliers;
-        for (std::size_t i = 0; i < g.mask.size() && i < r.matches.size(); ++i) r.matches[i].inlier = g.mask[i] != 0;
+        r.support = g.inliers;
+        for (std::size_t k = 0; k < g.mask.size() && k < order.size(); ++k) r.matches[order[k]].inlier = g.mask[k] != 0;
       }
     }
   }
+  if (r.found && options_.refine) Refine(r, q);
   r.time.verify_ms += t.ElapsedMs();
 }
 
+void Matcher::Refine(MatchResult& r, const QueryPoints& q) const {
+  const int dims = model_.params.dims;
+  const int nq = int(q.pts.size());
+  if (nq == 0) return;
+  // Descriptor distance the fit's inliers reach: a guided pair must do as well.
+  std::vector<float> inlier_d;
+  for (const auto& m : r.matches)
+    if (m.inlier) inlier_d.push_back(m.distance);
+  if (inlier_d.size() < 4) return;
+  std::sort(inlier_d.begin(), inlier_d.end());
+  const float tau = inlier_d[std::min(inlier_d.size() - 1, std::size_t(0.8 * double(inlier_d.size())))];
+  // Query points on a grid of cells of the search radius.
+  const float R = options_.refine_radius;
+  float xmax = 0, ymax = 0;
+  for (const auto& p : q.pts) {
+    xmax = std::max(xmax, p.x);
+    ymax = std::max(ymax, p.y);
+  }
+  const int gw = int(xmax / R) + 2, gh = int(ymax / R) + 2;
+  std::vector<std::vector<int>> grid(std::size_t(gw) * gh);
+  for (int i = 0; i < nq; ++i)
+    if (q.pts[i].x >= 0 && q.pts[i].y >= 0) grid[std::size_t(int(q.pts[i].y / R)) * gw + int(q.pts[i].x / R)].push_back(i);
+  // Each location: the best query point near where the homography puts it.
+  std::vector<float> best_d(nq, std::numeric_limits<float>::infinity());
+  std::vector<int> best_loc(nq, -1);
+  const cv::Matx33d& H = r.homography;
+  for (int l = 0; l < int(model_.locations.size()); ++l) {
+    const auto& L = model_.locations[l];
+    const double w = H(2, 0) * L.x + H(2, 1) * L.y + H(2, 2);
+    if (!(w > 0)) continue;
+    const float px = float((H(0, 0) * L.x + H(0, 1) * L.y + H(0, 2)) / w);
+    const float py = float((H(1, 0) * L.x + H(1, 1) * L.y + H(1, 2)) / w);
+    if (!(px >= -R && py >= -R && px <= xmax + R && py <= ymax + R)) continue;
+    const int cx = int(std::floor(px / R)), cy = int(std::floor(py / R));
+    for (int yy = std::max(0, cy - 1); yy <= std::min(gh - 1, cy + 1); ++yy)
+      for (int xx = std::max(0, cx - 1); xx <= std::min(gw - 1, cx + 1); ++xx)
+        for (int i : grid[std::size_t(yy) * gw + xx]) {
+          const float dx = q.pts[i].x - px, dy = q.pts[i].y - py;
+          if (dx * dx + dy * dy > R * R) continue;
+          const float* qd = &q.desc[std::size_t(i) * dims];
+          float dmin = std::numeric_limits<float>::infinity();
+          for (int row : location_rows_[l]) {
+            const float* c = model_.descriptors.ptr<float>(row);
+            float s2 = 0;
+            for (int k = 0; k < dims; ++k) s2 += (qd[k] - c[k]) * (qd[k] - c[k]);
+            dmin = std::min(dmin, s2);
+          }
+          const float d = std::sqrt(dmin);
+          if (d <= tau && d < best_d[i]) {
+            best_d[i] = d;
+            best_loc[i] = l;
+          }
+        }
+  }
+  std::vector<cv::Point2f> src, dst;
+  for (int i = 0; i < nq; ++i)
+    if (best_loc[i] >= 0) {
+      src.emplace_back(model_.locations[best_loc[i]].x, model_.locations[best_loc[i]].y);
+      dst.push_back(q.pts[i]);
+    }
+  // The fit's own inliers always take part.
+  for (const auto& m : r.matches)
+    if (m.inlier) {
+      src.push_back(m.object);
+      dst.push_back(m.query);
+    }
+  if (int(src.size()) < r.inliers + 4) return;  // nothing gained
+  // Least squares, then drop what is off by more than the RANSAC threshold, twice.
+  cv::Matx33d Hr = H;
+  const double thr2 = options_.ransac_threshold * options_.ransac_threshold;
+  std::vector<cv::Point2f> s2, d2;
+  int support = 0;
+  for (int it = 0; it < 3; ++it) {
+    s2.clear();
+    d2.clear();
+    for (std::size_t i = 0; i < src.size(); ++i) {
+      const cv::Vec3d p = Hr * cv::Vec3d(src[i].x, src[i].y, 1);
+      const double ex = p[0] / p[2] - dst[i].x, ey = p[1] / p[2] - dst[i].y;
+      if (ex * ex + ey * ey <= thr2) {
+        s2.push_back(src[i]);
+        d2.push_back(dst[i]);
+      }
+    }
+    support = int(s2.size());
+    if (support < std::max(8, r.inliers)) return;
+    cv::Mat Hn;
+    if (options_.geometry == GeometryModel::kHomography) {
+      Hn = cv::findHomography(s2, d2, 0);
+    } else {
+      cv::Mat A = cv::estimateAffine2D(s2, d2, cv::noArray(), cv::LMEDS);
+      if (!A.empty()) {
+        Hn = cv::Mat::eye(3, 3, CV_64F);
+        A.copyTo(Hn.rowRange(0, 2));
+      }
+    }
+    if (Hn.empty()) return;
+    Hr = cv::Matx33d(Hn.ptr<double>());
+  }
+  const std::array<cv::Point2f, 4> quad = ProjectOutline(Hr, model_.object_width, model_.object_height);
+  if (!IsPlausibleOutline(quad)) return;
+  // Keep the refined homography if the fit's matches still agree with it.
+  int inl = 0;
+  std::vector<char> flag(r.matches.size(), 0);
+  for (std::size_t i = 0; i < r.matches.size(); ++i) {
+    const auto& m = r.matches[i];
+    const cv::Vec3d p = Hr * cv::Vec3d(m.object.x, m.object.y, 1);
+    const double ex = p[0] / p[2] - m.query.x, ey = p[1] / p[2] - m.query.y;
+    flag[i] = ex * ex + ey * ey <= thr2;
+    inl += flag[i];
+  }
+  if (inl < options_.min_inliers || inl < 0.8 * r.inliers) return;
+  r.homography = Hr;
+  r.outline = quad;
+  r.inliers = inl;
+  r.support = support;
+  for (std::size_t i = 0; i < r.matches.size(); ++i) r.matches[i].inlier = flag[i];
+}
+
+namespace {
+
+// Maps the query side of a result from an image scaled by `f` (pixel centres)
+// back to the frame: H' = S^-1 H, matches and outline alike.
+void ScaleQuerySide(MatchResult& r, double f, int object_w, int object_h) {
+  const double a = 1.0 / f, b = 0.5 / f - 0.5;
+  const cv::Matx33d S(a, 0, b, 0, a, b, 0, 0, 1);
+  for (auto& m : r.matches) m.query = {float(m.query.x * a + b), float(m.query.y * a + b)};
+  if (r.found) {
+    r.homography = S * r.homography;
+    r.homography *= 1.0 / r.homography(2, 2);
+    r.outline = ProjectOutline(r.homography, object_w, object_h);
+  }
+}
+
+void AddTime(MatchTiming& a, const MatchTiming& b) {
+  a.smooth_ms += b.smooth_ms;
+  a.detect_ms += b.detect_ms;
+  a.describe_ms += b.describe_ms;
+  a.search_ms += b.search_ms;
+  a.verify_ms += b.verify_ms;
+}
+
+// The better of two results: found beats not found, then more inliers.
+bool Better(const MatchResult& a, const MatchResult& b) {
+  if (a.found != b.found) return a.found;
+  return a.inliers > b.inliers;
+}
+
+}  // namespace
+
 MatchResult Matcher::Match(const cv::Mat& gray) const {
   CV_Assert(gray.type() == CV_8UC1);
+  const int side = std::max(gray.cols, gray.rows);
+  // Upsampling (tiny targets) only where no finer image exists and it stays cheap.
+  if (options_.working_size <= 0 || side <= options_.working_size) return MatchAt(gray, true, side <= 1280);
+
+  // A large frame: search it at the working size first; if the target is not
+  // there, it may be too small for that size, so search twice as fine (up to
+  // the frame itself). The answer is in the frame's pixels.
+  MatchResult best;
+  MatchTiming time;
+  int keypoints = 0;
+  bool first = true;
+  for (double f = double(options_.working_size) / side;; f = std::min(1.0, 2 * f)) {
+    Timer t;
+    cv::Mat img;
+    if (f < 1.0)
+      cv::resize(gray, img, cv::Size(std::max(1, int(std::lround(gray.cols * f))), std::max(1, int(std::lround(gray.rows * f)))),
+                 0, 0, cv::INTER_AREA);
+    else
+      img = gray;
+    const double fx = double(img.cols) / gray.cols;
+    const double resample_ms = t.ElapsedMs();
+    // Steep views are simulated at the working size only (their cost grows with the pixels).
+    MatchResult r = MatchAt(img, /*tilt=*/first, /*upsample=*/false);
+    first = false;
+    r.time.smooth_ms += resample_ms;
+    AddTime(time, r.time);
+    keypoints += r.keypoints;
+    ScaleQuerySide(r, fx, model_.object_width, model_.object_height);
+    if (Better(r, best) || best.keypoints == 0) best = std::move(r);
+    if (best.found || f >= 1.0) break;
+  }
+  best.time = time;
+  best.keypoints = keypoints;
+  return best;
+}
+
+MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) const {
   MatchResult r;
-  FeatureOptions fo = QueryFeatureOptions(model_.params, options_.max_points);
+  FeatureOptions fo = QueryFeatureOptions(model_.params, options_.max_points, options_.grid_cells, options_.grid_share);
   Features f = ExtractFeatures(gray, fo);
   r.keypoints = int(f.keypoints.size());
   r.time.smooth_ms = f.smooth_ms;
   r.time.detect_ms = f.detect_ms;
   r.time.describe_ms = f.describe_ms;
   SearchAndFilter(f, 0, r);
-  Verify(r);
-  if ((r.found && r.inliers >= options_.retry_below_inliers) || options_.half_res_points <= 0 || gray.cols < 64 ||
-      gray.rows < 64)
-    return r;
+  QueryPoints q;
+  if (options_.refine) q.Add(f);
+  Verify(r, q);
+  if (r.found && r.inliers >= options_.retry_below_inliers) return r;
 
   // Not found, or weakly: the target may appear larger than the trained view
   // range. Add points from half resolution, verify again, keep the better.
-  const MatchResult first = r;
-  Timer th;
-  cv::Mat half;
-  cv::resize(gray, half, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
-  r.time.smooth_ms += th.ElapsedMs();
-  fo.detector.max_points = options_.half_res_points;
-  Features g = ExtractFeatures(half, fo);
-  for (auto& k : g.keypoints) {  // half-resolution pixel centres at full resolution
-    k.x = 2 * k.x + 0.5f;
-    k.y = 2 * k.y + 0.5f;
+  if (options_.half_res_points > 0 && gray.cols >= 64 && gray.rows >= 64) {
+    const MatchResult first = r;
+    Timer th;
+    cv::Mat half;
+    cv::resize(gray, half, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+    r.time.smooth_ms += th.ElapsedMs();
+    fo.detector.max_points = options_.half_res_points;
+    Features g = ExtractFeatures(half, fo);
+    for (auto& k : g.keypoints) {  // half-resolution pixel centres at full resolution
+      k.x = 2 * k.x + 0.5f;
+      k.y = 2 * k.y + 0.5f;
+    }
+    r.time.smooth_ms += g.smooth_ms;
+    r.time.detect_ms += g.detect_ms;
+    r.time.describe_ms += g.describe_ms;
+    r.keypoints += int(g.keypoints.size());
+    SearchAndFilter(g, 0, r);
+    if (options_.refine) q.Add(g);
+    Verify(r, q);
+    if (first.found && r.inliers <= first.inliers) {
+      MatchTiming t = r.time;
+      const int kps = r.keypoints;
+      r = first;
+      r.time = t;
+      r.keypoints = kps;
+    }
   }
-  r.time.smooth_ms += g.smooth_ms;
-  r.time.detect_ms += g.detect_ms;
-  r.time.describe_ms += g.describe_ms;
-  r.keypoints += int(g.keypoints.size());
-  SearchAndFilter(g, 0, r);
-  Verify(r);
-  if (first.found && r.inliers <= first.inliers) {
-    MatchTiming t = r.time;
-    r = first;
-    r.time = t;
+  if (r.found) return r;
+
+  // Not found: the target may be smaller than the smallest trained level
+  // covers. Search the frame upsampled twice (its points mapped back).
+  if (upsample && options_.upsample_points > 0) {
+    Timer tu;
+    cv::Mat up;
+    cv::resize(gray, up, cv::Size(gray.cols * 2, gray.rows * 2), 0, 0, cv::INTER_LINEAR);
+    r.time.smooth_ms += tu.ElapsedMs();
+    fo.detector.max_points = options_.upsample_points;
+    Features u = ExtractFeatures(up, fo);
+    for (auto& k : u.keypoints) {  // double-resolution pixel centres at full resolution
+      k.x = (k.x + 0.5f) / 2 - 0.5f;
+      k.y = (k.y + 0.5f) / 2 - 0.5f;
+    }
+    r.time.smooth_ms += u.smooth_ms;
+    r.time.detect_ms += u.detect_ms;
+    r.time.describe_ms += u.describe_ms;
+    r.keypoints += int(u.keypoints.size());
+    SearchAndFilter(u, 0, r);
+    if (options_.refine) q.Add(u);
+    Verify(r, q);
+    if (r.found) return r;
+  }
+  if (!tilt || options_.tilt_directions <= 0 || options_.tilt_factors.empty() || gray.cols < 64 || gray.rows < 64) return r;
+
+  // Still nothing: simulate steep views of the frame (ASIFT-style). For each
+  // direction phi and factor t the frame is rotated by -phi, blurred along y
+  // against aliasing, shrunk by sqrt(t) along y and stretched by sqrt(t)
+  // along x: the target keeps its size in pixels while a tilt along y loses
+  // a factor t of its anisotropy. Points found there are mapped back to the
+  // frame. Each simulated view is verified alone (its matches are one
+  // population); the best fit wins and is refined with every point.
+  MatchResult best = r;
+  FeatureOptions ft = fo;
+  ft.detector.max_points = options_.tilt_points;
+  for (float t : options_.tilt_factors) {
+    for (int k = 0; k < options_.tilt_directions; ++k) {
+      Timer tw;
+      const double phi = CV_PI * k / options_.tilt_directions;
+      const double c = std::cos(phi), sn = std::sin(phi);
+      // Rotation by -phi into a canvas holding the whole frame.
+      double rx0 = 1e300, ry0 = 1e300, rx1 = -1e300, ry1 = -1e300;
+      for (const cv::Vec2d& p : {cv::Vec2d(0, 0), cv::Vec2d(gray.cols - 1, 0), cv::Vec2d(0, gray.rows - 1),
+                                 cv::Vec2d(gray.cols - 1, gray.rows - 1)}) {
+        const double vx = c * p[0] + sn * p[1], vy = -sn * p[0] + c * p[1];
+        rx0 = std::min(rx0, vx); ry0 = std::min(ry0, vy);
+        rx1 = std::max(rx1, vx); ry1 = std::max(ry1, vy);
+      }
+      cv::Mat rot;
+      if (k == 0) {
+        rot = gray;
+        rx0 = ry0 = 0;
+      } else {
+        const cv::Matx23d M(c, sn, -rx0, -sn, c, -ry0);
+        cv::warpAffine(gray, rot, cv::Mat(M), cv::Size(int(std::ceil(rx1 - rx0)) + 1, int(std::ceil(ry1 - ry0)) + 1),
+                       cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+      }
+      const double st = std::sqrt(double(t));
+      const double sigma = 0.8 * std::sqrt(st * st - 1.0);
+      cv::Mat blurred, sim;
+      cv::GaussianBlur(rot, blurred, cv::Size(1, 2 * int(std::ceil(3 * sigma)) + 1), 0.1, sigma, cv::BORDER_REPLICATE);
+      cv::resize(blurred, sim,
+                 cv::Size(std::max(8, int(std::lround(rot.cols * st))), std::max(8, int(std::lround(rot.rows / st)))), 0,
+                 0, cv::INTER_LINEAR);
+      r.time.smooth_ms += tw.ElapsedMs();
+      Features h = ExtractFeatures(sim, ft);
+      // Simulated pixel -> frame pixel: undo the resize (pixel centres), the canvas shift and the rotation.
+      const double fx = double(rot.cols) / sim.cols, fy = double(rot.rows) / sim.rows;
+      for (auto& kp : h.keypoints) {
+        const double rx = (kp.x + 0.5) * fx - 0.5 + rx0, ry = (kp.y + 0.5) * fy - 0.5 + ry0;
+        kp.x = float(c * rx - sn * ry);
+        kp.y = float(sn * rx + c * ry);
+      }
+      r.time.smooth_ms += h.smooth_ms;
+      r.time.detect_ms += h.detect_ms;
+      r.time.describe_ms += h.describe_ms;
+      r.keypoints += int(h.keypoints.size());
+      MatchResult part;
+      SearchAndFilter(h, 0, part);
+      r.time.search_ms += part.time.search_ms;
+      if (options_.refine) q.Add(h);
+      Verify(part, QueryPoints{});
+      r.time.verify_ms += part.time.verify_ms;
+      if (part.found && (!best.found || part.inliers > best.inliers)) best = std::move(part);
+    }
+  }
+  if (best.found) {
+    const MatchTiming keep = r.time;
+    const int kps = r.keypoints;
+    r = std::move(best);
+    r.time = keep;
+    r.keypoints = kps;
+    Timer tr;
+    if (options_.refine) Refine(r, q);
+    r.time.verify_ms += tr.ElapsedMs();
   }
   return r;
 }

@@ -25,25 +25,60 @@ enum class GeometryModel { kHomography, kAffine };
 // Robust estimators from OpenCV's calib3d. kAccurate (USAC with graph-cut
 // local optimisation) measured best overall: more frames within 5 px than
 // classic RANSAC and ~2.5x faster on outlier-heavy frames (README).
-enum class RobustMethod { kRansac, kFast, kAccurate, kMagsac };
+// kProsac: USAC with PROSAC sampling over the matches sorted by their
+// distance ratio (best first) and graph-cut local optimisation: the most
+// distinctive matches are tried first, which finds a target whose matches are
+// mostly wrong (a small or steep target in a busy frame) in far fewer
+// iterations than uniform sampling.
+enum class RobustMethod { kRansac, kFast, kAccurate, kMagsac, kProsac };
 
 struct MatchOptions {
-  int max_points = 500;          // strongest query points (thesis: ~500)
+  // Any frame size: a frame whose longest side exceeds working_size is
+  // searched downscaled to it (area averaging) and, if the target is not
+  // found there, at twice that size (up to the frame's own); results are in
+  // the frame's pixels. 0: always at full size.
+  int working_size = 1280;
+  int max_points = 1000;         // query points (thesis: ~500; 1000 measured better for small targets, issue 18)
+  int grid_cells = 16;           // query points: cells along the frame's longer side (DetectorOptions)
+  float grid_share = 0.75f;      // share of max_points given out per cell first (0: strongest of the frame)
   int half_res_points = 250;     // when not found at full resolution, retry with this many more
                                  // points from half resolution (targets larger than trained); 0: off
   int retry_below_inliers = 40;  // also retry at half resolution when found with fewer inliers
+  int upsample_points = 1000;    // still not found: this many points from the frame upsampled twice (tiny targets; frames
+                                 // up to 1280 px); 0: off
+  // Steep views (ASIFT-style, beyond the thesis): when the target is still not
+  // found, the frame is compressed by each tilt factor along tilt_directions
+  // evenly spaced directions, as a tilted camera would see it; each simulated
+  // view is searched with tilt_points points and verified on its own, and the
+  // best fit is kept. Undoes most of a steep tilt so the model's frontal and
+  // moderate views match. 0 tilt_directions: off.
+  std::vector<float> tilt_factors = {2.5f};
+  int tilt_directions = 4;
+  int tilt_points = 600;
   float ratio = 0.85f;           // distance-ratio test on distances (not squared); SPEC: 0.85 with orientation
   int dynamic_goal = 0;          // > 0: steer the ratio toward this many kept matches (thesis §3.2.3)
   int dynamic_checks = 10;       // how often the ratio is adjusted while processing the frame
   float ratio_min = 0.6f;        // bounds for the dynamic ratio
   float ratio_max = 0.95f;
   GeometryModel geometry = GeometryModel::kHomography;
-  RobustMethod robust = RobustMethod::kAccurate;
+  RobustMethod robust = RobustMethod::kProsac;
   double ransac_threshold = 4.0; // reprojection error for an inlier (query pixels)
   int ransac_iterations = 2000;
   double ransac_confidence = 0.995;
   int min_inliers = 10;          // fewer inliers: the target is not found
-  std::string index = "exact";   // descriptor search: exact (FFVA), approx (thesis block distance), brute
+  // Guided refinement after the robust fit: every model location is projected
+  // into the frame and paired with the query point within refine_radius
+  // pixels whose descriptor is nearest to the location's centres, if as near
+  // as the fit's inliers typically are; the homography is then refitted to
+  // all pairs (least squares, outliers dropped). Spreads the support over the
+  // whole target: far corners of steep views and small targets land closer.
+  bool refine = true;
+  float refine_radius = 6.f;
+  // Descriptor search: ivf (inverted file over a k-means coarse quantiser of
+  // the model's centres, `nprobe` lists per query; approximate), exact
+  // (FFVA), approx (FFVA with the thesis block distance) or brute.
+  std::string index = "ivf";
+  int nprobe = 8;
   void Check() const;
 };
 
@@ -51,6 +86,7 @@ struct Correspondence {
   cv::Point2f object;  // object-image pixels
   cv::Point2f query;   // query-frame pixels
   float distance = 0;  // descriptor distance to the nearest centre (L2, not squared)
+  float ratio = 0;     // distance / distance to the nearest centre of another place
   int location = -1;   // object location id in the model
   bool inlier = false; // RANSAC inlier
 };
@@ -65,7 +101,8 @@ struct MatchResult {
   cv::Matx33d homography = cv::Matx33d::eye();  // maps object pixels to query pixels (valid if found)
   std::array<cv::Point2f, 4> outline{};         // object corners in the query frame (valid if found)
   std::vector<Correspondence> matches;          // after the ratio test, before RANSAC
-  int inliers = 0;
+  int inliers = 0;                              // matches consistent with the homography
+  int support = 0;                              // after refinement: inliers plus guided pairs (= inliers without it)
   int keypoints = 0;                            // query points detected
   float final_ratio = 0;                        // ratio in force at the end (differs when dynamic)
   MatchTiming time;
@@ -83,13 +120,32 @@ class Matcher {
   const MatchOptions& options() const { return options_; }
 
  private:
+  // Query points of every pass, in frame pixels, with their descriptors.
+  struct QueryPoints {
+    std::vector<cv::Point2f> pts;
+    std::vector<float> desc;
+    void Add(const Features& f);
+  };
   void SearchAndFilter(const Features& f, std::size_t first, MatchResult& r) const;
-  void Verify(MatchResult& r) const;
+  void Verify(MatchResult& r, const QueryPoints& q) const;
+  // The cascade at one resolution: all points, then half resolution, then
+  // (upsample) twice the resolution, then (tilt) simulated steep views.
+  MatchResult MatchAt(const cv::Mat& gray, bool tilt, bool upsample) const;
+  void Refine(MatchResult& r, const QueryPoints& q) const;
 
   Model model_;
   MatchOptions options_;
   std::unique_ptr<KnnIndex> index_;
+  std::vector<std::int32_t> places_;  // per centre: its place (see LocationPlaces)
+  std::vector<std::vector<int>> location_rows_;  // per location: its centres' rows
 };
+
+// Groups the model's locations into places: locations of different pyramid
+// levels that lie within two pixels of the coarser level of each other are
+// the same point of the target seen at two resolutions. The ratio test's
+// second neighbour must be another place (SPEC §3: another location), or a
+// point matched at two levels would reject itself. Returns one id per location.
+std::vector<std::int32_t> LocationPlaces(const Model& model);
 
 // Robust fit of object -> query point pairs with the estimator, geometry and
 // thresholds of `options` (USAC / RANSAC homography, or affine). Empty
@@ -108,7 +164,7 @@ std::array<cv::Point2f, 4> ProjectOutline(const cv::Matx33d& H, int width, int h
 
 // The feature settings a query frame must be processed with for a model
 // trained with `params`, keeping the `max_points` strongest points.
-FeatureOptions QueryFeatureOptions(const ModelParams& params, int max_points);
+FeatureOptions QueryFeatureOptions(const ModelParams& params, int max_points, int grid_cells = 8, float grid_share = 0.5f);
 
 // Mean distance (pixels) between where two homographies put the four corners
 // (0,0), (w-1,0), (w-1,h-1), (0,h-1) of an image of `size`: the HPatches-style

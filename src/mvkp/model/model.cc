@@ -84,8 +84,12 @@ void Model::Validate(const std::string& name) const {
   if (int(labels.size()) != m) Bad(name, "label count does not match descriptor count");
   for (auto l : labels)
     if (l < 0 || l >= int(locations.size())) Bad(name, "descriptor label out of range");
-  for (const auto& loc : locations)
+  if (params.levels < 1 || params.levels > 16) Bad(name, "invalid number of pyramid levels " + std::to_string(params.levels));
+  for (const auto& loc : locations) {
     if (!std::isfinite(loc.x) || !std::isfinite(loc.y)) Bad(name, "non-finite location");
+    if (loc.level < 0 || loc.level >= params.levels) Bad(name, "location level out of range");
+    if (!(loc.scale > 0.f && loc.scale < 1e4f)) Bad(name, "invalid location scale");
+  }
   for (int i = 0; i < m; ++i)
     for (int j = 0; j < descriptors.cols; ++j)
       if (!std::isfinite(descriptors.at<float>(i, j))) Bad(name, "non-finite descriptor value");
@@ -111,6 +115,11 @@ std::vector<std::uint8_t> SerializeModel(const Model& model) {
   p.Put(q.min_scale);
   p.Put(q.max_scale);
   p.Put(q.train_ms);
+  p.Put<std::uint8_t>(q.view_model);
+  p.Put<std::int32_t>(q.levels);
+  p.Put(q.max_tilt_deg);
+  p.Put(q.level_min_scale);
+  p.Put(q.level_max_scale);
   p.Put<std::int32_t>(model.object_width);
   p.Put<std::int32_t>(model.object_height);
   p.Put<std::uint32_t>(std::uint32_t(model.locations.size()));
@@ -118,6 +127,8 @@ std::vector<std::uint8_t> SerializeModel(const Model& model) {
     p.Put(l.x);
     p.Put(l.y);
     p.Put<std::int32_t>(l.stability);
+    p.Put<std::uint8_t>(std::uint8_t(l.level));
+    p.Put(l.scale);
   }
   const std::uint32_t m = std::uint32_t(model.descriptors.rows);
   p.Put(m);
@@ -144,7 +155,7 @@ Model DeserializeModel(const std::uint8_t* data, std::size_t size, const std::st
   std::memcpy(&payload, data + 12, 8);
   if (version == 0) Bad(name, "corrupt model (format version 0)");
   if (version > kModelFormatVersion)
-    Bad(name, "model format version " + std::to_string(version) + " is newer than this mvkp reads (" +
+    Bad(name, "model format version " + std::to_string(version) + " is newer than this mvkp reads (versions 1.." +
                   std::to_string(kModelFormatVersion) + "); upgrade mvkp or retrain");
   if (payload > size - kHeaderBytes || size - kHeaderBytes - payload < 4)
     Bad(name, "truncated model file (" + std::to_string(size) + " bytes; header declares a " +
@@ -174,16 +185,30 @@ Model DeserializeModel(const std::uint8_t* data, std::size_t size, const std::st
   q.min_scale = r.Get<float>();
   q.max_scale = r.Get<float>();
   q.train_ms = r.Get<double>();
+  if (version >= 2) {
+    q.view_model = r.Get<std::uint8_t>();
+    q.levels = r.Get<std::int32_t>();
+    q.max_tilt_deg = r.Get<float>();
+    q.level_min_scale = r.Get<float>();
+    q.level_max_scale = r.Get<float>();
+    if (q.view_model > 2) Bad(name, "corrupt model (unknown view model " + std::to_string(q.view_model) + ")");
+    if (q.levels < 1 || q.levels > 16) Bad(name, "corrupt model (" + std::to_string(q.levels) + " pyramid levels)");
+  }
   model.object_width = r.Get<std::int32_t>();
   model.object_height = r.Get<std::int32_t>();
   if (q.dims < 1 || q.dims > 4096) Bad(name, "invalid descriptor dimension " + std::to_string(q.dims));
   const std::uint32_t nl = r.Get<std::uint32_t>();
-  if (std::uint64_t(nl) * 12 > r.remaining()) Bad(name, "corrupt model (location count exceeds the payload)");
+  const std::uint64_t loc_bytes = version >= 2 ? 17 : 12;
+  if (std::uint64_t(nl) * loc_bytes > r.remaining()) Bad(name, "corrupt model (location count exceeds the payload)");
   model.locations.resize(nl);
   for (auto& l : model.locations) {
     l.x = r.Get<float>();
     l.y = r.Get<float>();
     l.stability = r.Get<std::int32_t>();
+    if (version >= 2) {
+      l.level = r.Get<std::uint8_t>();
+      l.scale = r.Get<float>();
+    }
   }
   const std::uint32_t m = r.Get<std::uint32_t>();
   const std::uint64_t row = 4 + 4ull * std::uint64_t(q.dims);

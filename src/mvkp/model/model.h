@@ -2,7 +2,8 @@
 //
 // File layout (little-endian):
 //   "MVKPMODL"                  8-byte magic
-//   u32 format_version          kModelFormatVersion; newer files are refused
+//   u32 format_version          kModelFormatVersion; newer files are refused,
+//                               version 1 (one level, affine views) still loads
 //   u64 payload_bytes
 //   payload                     see model.cc (parameters, locations, descriptors)
 //   u32 crc32(payload)          IEEE CRC-32
@@ -19,7 +20,7 @@
 
 namespace mvkp {
 
-constexpr std::uint32_t kModelFormatVersion = 1;
+constexpr std::uint32_t kModelFormatVersion = 2;
 
 // What query-side feature extraction must reproduce, and how the model was trained.
 struct ModelParams {
@@ -40,11 +41,18 @@ struct ModelParams {
   std::uint64_t seed = 0;
   float min_scale = 0.f, max_scale = 0.f;
   double train_ms = 0;
+  // Envelope (format version 2; a version-1 model reads as one affine level).
+  std::uint8_t view_model = 0;   // 0: affine views (thesis), 1: camera-model views, 2: both (TrainOptions::ViewModel)
+  int levels = 1;                // training pyramid levels
+  float max_tilt_deg = 0.f;      // steepest training view
+  float level_min_scale = 0.f, level_max_scale = 0.f;  // camera views: scale range per level
 };
 
 struct ObjectLocation {
   float x = 0.f, y = 0.f;  // object-image pixels
   int stability = 0;       // number of training views in which it was detected
+  int level = 0;           // training pyramid level (0: the largest)
+  float scale = 1.f;       // object-image pixels per pixel of its level
 };
 
 struct Model {

@@ -101,14 +101,20 @@ TEST(Quality, UniformTinyAndTexturelessImagesScoreZeroWithAReason) {
   EXPECT_EQ(r.detection_rate, 0);
 }
 
-TEST(Quality, StableUnderGlobalContrastAndSize) {
+TEST(Quality, StableUnderBrightnessAndSizeButNotContrast) {
   const cv::Mat img = Sample("fruits.jpg");
-  const int base = AssessTarget(img, Fast()).score;
-  cv::Mat dark, big;
-  img.convertTo(dark, CV_8U, 0.5, 0);
+  const QualityReport base = AssessTarget(img, Fast());
+  cv::Mat bright, big, faint;
+  img.convertTo(bright, CV_8U, 1.0, 25);
   cv::resize(img, big, cv::Size(), 2.0, 2.0, cv::INTER_CUBIC);
-  EXPECT_LE(std::abs(AssessTarget(dark, Fast()).score - base), 10);
-  EXPECT_LE(std::abs(AssessTarget(big, Fast()).score - base), 10);
+  EXPECT_LE(std::abs(AssessTarget(bright, Fast()).score - base.score), 10);
+  EXPECT_LE(std::abs(AssessTarget(big, Fast()).score - base.score), 10);
+  // The score measures the image as given (issue 18): a copy at a quarter of
+  // the contrast is found less often in practice, and the score says so.
+  img.convertTo(faint, CV_8U, 0.25, 96);
+  const QualityReport f = AssessTarget(faint, Fast());
+  EXPECT_LT(f.detection_rate, base.detection_rate);
+  EXPECT_LT(f.score, base.score);
 }
 
 TEST(Quality, DrawingMarksSelectedFeatures) {

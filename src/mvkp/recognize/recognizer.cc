@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
 #include <unordered_map>
 
 #include <opencv2/calib3d.hpp>
@@ -87,8 +88,39 @@ struct Encoded {
 struct Vote {
   cv::Point2f object, query;
   int query_index;
+  float ratio = 0;  // kExact: d1 / d2 (PROSAC tries the lowest first)
 };
 
+// At most `max` locations of m: the top level's first (the target at full
+// size, which most frames show), then the smaller levels' in proportion to
+// their counts; each level's best ranked first. Giving the smaller levels a
+// fixed share (20 %) lost views of full-size targets in the recognizer tests,
+// so with 150 kept locations a 320-px target keeps its top level only.
+std::vector<int> KeptLocations(const Model& m, int max) {
+  const int n = int(m.locations.size());
+  std::vector<std::vector<int>> by_level(std::size_t(std::max(1, m.params.levels)));
+  for (int l = 0; l < n; ++l)
+    by_level[std::size_t(std::clamp(m.locations[std::size_t(l)].level, 0, int(by_level.size()) - 1))].push_back(l);
+  std::vector<int> quota(by_level.size(), 0);
+  int rest_total = 0;
+  for (std::size_t k = 1; k < by_level.size(); ++k) rest_total += int(by_level[k].size());
+  quota[0] = std::min(int(by_level[0].size()), max);
+  int left = std::min(max - quota[0], rest_total);
+  for (std::size_t k = 1; k < by_level.size() && rest_total > 0; ++k)
+    quota[k] = int(std::floor(double(left) * double(by_level[k].size()) / rest_total));
+  int given = 0;
+  for (int q : quota) given += q;
+  // Whatever is left (rounding, or a short level) goes to the levels in order.
+  for (std::size_t k = 0; given < std::min(max, n) && k < by_level.size(); ++k) {
+    const int extra = std::min(int(by_level[k].size()) - quota[k], std::min(max, n) - given);
+    quota[k] += extra;
+    given += extra;
+  }
+  std::vector<int> out;
+  for (std::size_t k = 0; k < by_level.size(); ++k)
+    for (int i = 0; i < quota[k]; ++i) out.push_back(by_level[k][std::size_t(i)]);
+  return out;
+}
 }  // namespace
 
 struct Recognizer::Impl {
@@ -118,7 +150,7 @@ struct Recognizer::Impl {
   mutable std::unique_ptr<KnnIndex> index;
   mutable bool dirty = true;
   mutable std::vector<std::uint32_t> label_slot;    // global location id -> slot
-  mutable std::vector<std::int32_t> label_loc;      // global location id -> location in its model
+  mutable std::vector<std::int32_t> row_offset;     // slot -> its first row in the index
   mutable std::map<std::string, std::shared_ptr<const Matcher>> focus;  // RecognizeOne's matchers
 
   void EnsureIndex(const RecognizerOptions& o) const;
@@ -145,18 +177,24 @@ Encoded Recognizer::Impl::Encode(const Model& m, const RecognizerOptions& o) con
   enc.params = m.params;
   enc.width = m.object_width;
   enc.height = m.object_height;
-  const int L = std::min<int>(o.max_locations, int(m.locations.size()));
+  // The kept locations: the most stable of each pyramid level in proportion
+  // to the level's share of the model (levels are stored largest first, each
+  // ranked), so a target keeps its small-scale levels too.
+  const std::vector<int> kept = KeptLocations(m, o.max_locations);
+  const int L = int(kept.size());
+  std::vector<int> kept_index(m.locations.size(), -1);
+  for (int k = 0; k < L; ++k) kept_index[std::size_t(kept[std::size_t(k)])] = k;
   auto& xy = enc.xy;
   xy.resize(2 * std::size_t(L));
   for (int l = 0; l < L; ++l) {
-    const auto& p = m.locations[std::size_t(l)];
+    const auto& p = m.locations[std::size_t(kept[std::size_t(l)])];
     xy[2 * std::size_t(l)] = std::uint16_t(std::lround(std::clamp(p.x, 0.f, kMaxObjectSide) * kLocationScale));
     xy[2 * std::size_t(l) + 1] = std::uint16_t(std::lround(std::clamp(p.y, 0.f, kMaxObjectSide) * kLocationScale));
   }
   // The centres of the kept locations, quantised.
   std::vector<int> rows;
   for (int r = 0; r < m.descriptors.rows; ++r)
-    if (m.labels[std::size_t(r)] < L) rows.push_back(r);
+    if (kept_index[std::size_t(m.labels[std::size_t(r)])] >= 0) rows.push_back(r);
   const int dims = m.descriptors.cols;
   std::vector<float> x(rows.size() * std::size_t(dims));
   for (std::size_t i = 0; i < rows.size(); ++i)
@@ -173,7 +211,7 @@ Encoded Recognizer::Impl::Encode(const Model& m, const RecognizerOptions& o) con
   };
   std::vector<std::vector<WordStat>> per_loc(static_cast<std::size_t>(L));
   for (std::size_t i = 0; i < rows.size(); ++i) {
-    auto& ws = per_loc[std::size_t(m.labels[std::size_t(rows[i])])];
+    auto& ws = per_loc[std::size_t(kept_index[std::size_t(m.labels[std::size_t(rows[i])])])];
     auto it = std::find_if(ws.begin(), ws.end(), [&](const WordStat& s) { return s.word == wa[i].word; });
     if (it == ws.end()) {
       ws.push_back({wa[i].word, 0, 0.f, std::vector<double>(std::size_t(dims), 0.0)});
@@ -230,24 +268,28 @@ void Recognizer::Impl::EnsureIndex(const RecognizerOptions& o) const {
   if (!dirty) return;
   index.reset();
   label_slot.clear();
-  label_loc.clear();
+  row_offset.assign(slots.size(), 0);
   std::vector<float> data;
   std::vector<std::int32_t> labels;
+  std::int64_t rows = 0;
   for (std::uint32_t s = 0; s < slots.size(); ++s) {
     if (!slots[s].alive) continue;
     const Model& m = *slots[s].model;
     const std::int64_t offset = std::int64_t(label_slot.size());
-    Require(offset + std::int64_t(m.locations.size()) < std::numeric_limits<std::int32_t>::max(),
+    Require(offset + std::int64_t(m.locations.size()) < std::numeric_limits<std::int32_t>::max() &&
+                rows + m.descriptors.rows < std::numeric_limits<std::int32_t>::max(),
             ErrorCode::kInvalidArgument, "too many object locations over all targets");
+    // Labels are places (a point seen at two pyramid levels is one place),
+    // so the second neighbour is another place; the row gives the location.
+    const std::vector<std::int32_t> place = LocationPlaces(m);
+    row_offset[s] = std::int32_t(rows);
     for (int r = 0; r < m.descriptors.rows; ++r) {
       const float* p = m.descriptors.ptr<float>(r);
       data.insert(data.end(), p, p + m.descriptors.cols);
-      labels.push_back(std::int32_t(offset + m.labels[std::size_t(r)]));
+      labels.push_back(std::int32_t(offset + place[std::size_t(m.labels[std::size_t(r)])]));
     }
-    for (std::size_t l = 0; l < m.locations.size(); ++l) {
-      label_slot.push_back(s);
-      label_loc.push_back(std::int32_t(l));
-    }
+    rows += m.descriptors.rows;
+    for (std::size_t l = 0; l < m.locations.size(); ++l) label_slot.push_back(s);
   }
   // The probed search needs the vocabulary's descriptor space; targets of
   // another dimension are searched exhaustively.
@@ -274,7 +316,7 @@ void Recognizer::Impl::EnsureIndex(const RecognizerOptions& o) const {
     ivf->BuildAssigned(data.data(), labels.size(), params.dims, labels.data(), cells.data());
     index = std::move(ivf);
   } else if (!labels.empty()) {
-    index = MakeIndexByName(o.match.index);
+    index = MakeIndexByName(o.match.index == "ivf" ? "exact" : o.match.index);  // exhaustive: FFVA
     index->Build(data.data(), labels.size(), params.dims, labels.data());
   }
   dirty = false;
@@ -285,8 +327,15 @@ namespace {
 // Robust fit over one target's correspondences (as Matcher::Verify); inliers
 // are counted as distinct query points, since a query point may vote for
 // several locations of one target.
-bool VerifyTarget(const std::vector<Vote>& votes, int width, int height, const RecognizerOptions& o, int min_inliers,
+bool VerifyTarget(std::vector<Vote> votes, int width, int height, const RecognizerOptions& o, int min_inliers,
                   Recognition& out) {
+  // PROSAC draws from the front: the most distinctive matches first. Word
+  // votes carry no ratio to sort by: they take uniform sampling (kAccurate).
+  const bool ranked = std::any_of(votes.begin(), votes.end(), [](const Vote& v) { return v.ratio > 0; });
+  if (o.match.robust == RobustMethod::kProsac && ranked)
+    std::stable_sort(votes.begin(), votes.end(), [](const Vote& a, const Vote& b) { return a.ratio < b.ratio; });
+  MatchOptions mo = o.match;
+  if (mo.robust == RobustMethod::kProsac && !ranked) mo.robust = RobustMethod::kAccurate;
   std::vector<cv::Point2f> src, dst;
   src.reserve(votes.size());
   dst.reserve(votes.size());
@@ -296,7 +345,7 @@ bool VerifyTarget(const std::vector<Vote>& votes, int width, int height, const R
   }
   if (int(votes.size()) < std::max(4, min_inliers)) return false;
   cv::theRNG().state = 0x12345678;  // reproducible RANSAC
-  const GeometryFit g = FitGeometry(src, dst, o.match);
+  const GeometryFit g = FitGeometry(src, dst, mo);
   if (!g.ok || g.inliers < min_inliers) return false;
   std::vector<int> q;
   for (std::size_t i = 0; i < votes.size() && i < g.mask.size(); ++i)
@@ -614,7 +663,40 @@ RecognitionResult Recognizer::RecognizeOne(const cv::Mat& gray, const std::strin
 RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const {
   Require(!gray.empty() && gray.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "recognise: expected a non-empty 8-bit grayscale frame");
-  return Search(gray, -1, options_);
+  const int side = std::max(gray.cols, gray.rows);
+  const int work = options_.match.working_size;
+  if (work <= 0 || side <= work) return Search(gray, -1, options_);
+  // A large frame (as Matcher::Match): at the working size, then twice as
+  // fine if nothing is found; homographies in the frame's pixels.
+  RecognitionResult total;
+  for (double f = double(work) / side;; f = std::min(1.0, 2 * f)) {
+    Timer t;
+    cv::Mat img;
+    if (f < 1.0)
+      cv::resize(gray, img, cv::Size(std::max(1, int(std::lround(gray.cols * f))), std::max(1, int(std::lround(gray.rows * f)))),
+                 0, 0, cv::INTER_AREA);
+    else
+      img = gray;
+    const double resample_ms = t.ElapsedMs();
+    RecognitionResult r = Search(img, -1, options_);
+    const double fx = double(img.cols) / gray.cols, a = 1.0 / fx, b = 0.5 / fx - 0.5;
+    const cv::Matx33d S(a, 0, b, 0, a, b, 0, 0, 1);
+    for (auto& x : r.found) {
+      x.homography = S * x.homography;
+      x.homography *= 1.0 / x.homography(2, 2);
+      for (auto& c : x.outline) c = {float(c.x * a + b), float(c.y * a + b)};
+    }
+    total.detect_ms += r.detect_ms + resample_ms;
+    total.describe_ms += r.describe_ms;
+    total.search_ms += r.search_ms;
+    total.verify_ms += r.verify_ms;
+    total.keypoints += r.keypoints;
+    total.matches += r.matches;
+    total.candidates += r.candidates;
+    total.found = std::move(r.found);
+    if (!total.found.empty() || f >= 1.0) break;
+  }
+  return total;
 }
 
 RecognitionResult Recognizer::Search(const cv::Mat& gray, std::int64_t only_slot, const RecognizerOptions& o) const {
@@ -624,7 +706,7 @@ RecognitionResult Recognizer::Search(const cv::Mat& gray, std::int64_t only_slot
   const bool words = o.search == RecognizerSearch::kWords;
   if (!words) im.EnsureIndex(o);
 
-  FeatureOptions fo = QueryFeatureOptions(im.params, o.match.max_points);
+  FeatureOptions fo = QueryFeatureOptions(im.params, o.match.max_points, o.match.grid_cells, o.match.grid_share);
   Features f = ExtractFeatures(gray, fo);
   r.detect_ms = f.smooth_ms + f.detect_ms;
   r.describe_ms = f.describe_ms;
@@ -779,9 +861,11 @@ void Recognizer::VoteAndVerify(const Features& f, std::int64_t only_slot, const 
       const float d2 = b.id < 0 ? std::numeric_limits<float>::infinity() : std::sqrt(b.distance);
       if (!(d1 < ratio * d2)) continue;
       const std::uint32_t slot = im.label_slot[std::size_t(a.label)];
-      const auto& loc = im.slots[slot].model->locations[std::size_t(im.label_loc[std::size_t(a.label)])];
+      const Model& model = *im.slots[slot].model;
+      const auto& loc = model.locations[std::size_t(model.labels[std::size_t(a.id - im.row_offset[slot])])];
+      const float ratio_here = d2 > 0 ? d1 / d2 : 0.f;
       found_by_slot[slot].push_back(
-          {d2 > 0 ? d1 / d2 : 0.f, {{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i)}});
+          {ratio_here, {{loc.x, loc.y}, {f.keypoints[i].x, f.keypoints[i].y}, int(i), ratio_here}});
     }
     state.searched = n;
     std::vector<std::vector<Ranked>> by_slot(im.slots.size());
@@ -829,7 +913,7 @@ std::size_t Recognizer::memory_bytes() const {
   if (options_.search == RecognizerSearch::kExact) {
     im.EnsureIndex(options_);
     if (im.index) bytes += im.index->memory_bytes();
-    bytes += im.label_slot.capacity() * sizeof(std::uint32_t) + im.label_loc.capacity() * sizeof(std::int32_t);
+    bytes += im.label_slot.capacity() * sizeof(std::uint32_t) + im.row_offset.capacity() * sizeof(std::int32_t);
   }
   for (const auto& list : im.lists) bytes += list.capacity() * sizeof(Posting);
   for (const auto& t : im.slots) {

@@ -43,6 +43,7 @@
 #include "mvkp/match/matcher.h"
 #include "mvkp/model/model.h"
 #include "mvkp/recognize/vocabulary.h"
+#include "mvkp/train/trainer.h"
 
 namespace mvkp {
 
@@ -55,13 +56,32 @@ enum class RecognizerSearch { kWords, kExact };
 // ratio (thesis §6.3.1): 40 matches wanted, ratios under 0.7 always kept,
 // none over 0.92: recall 98.2 %, no pose off by 10 px, still no false
 // detection in 300 no-target frames (the first setting tried).
+//
+// Recognition searches every frame for every target, and most frames of a
+// guide or a video show none: the single-target cascade's last stages (the
+// frame upsampled for tiny targets, simulated steep views), which run on
+// every frame where nothing is found, are off here (MatchOptions for them).
 inline MatchOptions RecognitionMatchDefaults() {
   MatchOptions m;
   m.max_points = 1000;
   m.dynamic_goal = 40;
   m.ratio_min = 0.7f;
   m.ratio_max = 0.92f;
+  m.upsample_points = 0;
+  m.tilt_directions = 0;
   return m;
+}
+
+// How `mvkp db add`/`import`, the server's admin API and Python's
+// Database.add train exhibits: at 320 px (exhibits are matched at a few
+// hundred pixels in guide frames; the models stay half as large as at 640),
+// otherwise as `mvkp train` does: the training pyramid then covers paintings
+// down to a sixth of a 640-px frame (before issue 18 this took view scales
+// down to 0.25 instead).
+inline TrainOptions RecognitionTrainDefaults() {
+  TrainOptions t;
+  t.max_object_side = 320;
+  return t;
 }
 
 struct RecognizerOptions {
@@ -102,6 +122,9 @@ struct RecognizerOptions {
     RecognizerOptions o;
     o.search = RecognizerSearch::kWords;
     o.match.max_points = 600;
+    // The strongest points, not a share per cell: spreading 600 points over
+    // the frame adds chance votes as fast as true ones (recognizer tests).
+    o.match.grid_share = 0;
     return o;
   }
 };

@@ -6,7 +6,7 @@
 
 #include "mvkp/core/error.h"
 #include "mvkp/synth/synth.h"
-#include "mvkp/train/kmeans.h"
+#include "mvkp/index/kmeans.h"
 
 #include "test_samples.h"
 
@@ -37,6 +37,7 @@ TEST(KMeans, SeparatesWellSeparatedClustersDeterministically) {
 
 TEST(Train, RifsReportRanksTracksByFinalScoreAndKeepsTheRequestedShare) {
   TrainOptions o;
+  o.view_model = ViewModel::kAffine;  // the thesis's setting: one level of affine views
   o.views = 30;
   o.rotation_views = 36;
   o.select = Selection::kRifs;
@@ -48,7 +49,7 @@ TEST(Train, RifsReportRanksTracksByFinalScoreAndKeepsTheRequestedShare) {
   EXPECT_EQ(r.rotation_views, 36);
   EXPECT_EQ(r.min_stability, 3);  // max(3, 66 / 20)
   ASSERT_GT(r.eligible, 100);
-  EXPECT_NEAR(r.kept, 0.3 * r.eligible, 1.0);
+  EXPECT_NEAR(r.kept, 0.3 * r.eligible, 0.01 * r.eligible + 1);  // 30 % of the tracks with a general view
   EXPECT_EQ(int(m.locations.size()), r.kept);
   int kept = 0, prev_rank = -1;
   double prev = 1e300;
@@ -97,6 +98,7 @@ TEST(Train, RifsOptionsAreChecked) {
 TEST(Train, ProducesAStableReproducibleModel) {
   const cv::Mat img = Sample("starry_night.jpg");
   TrainOptions o;
+  o.view_model = ViewModel::kAffine;
   o.views = 40;
   o.locations = 100;
   o.clusters = 10;
@@ -133,14 +135,19 @@ TEST(Train, LocationsAreRealCornersOfTheObject) {
   o.views = 40;
   o.locations = 30;
   o.clusters = 5;
-  const Model m = Train(img, o);
-  int near = 0;
+  const Model m = Train(img, o);  // every level's locations, in input pixels
+  ASSERT_GT(m.params.levels, 1);
+  // Within 3 pixels of its level (a level at 1/4 size blurs the squares).
+  int near = 0, fine = 0;
   for (const auto& l : m.locations) {
+    if (l.scale > 2.5f) continue;  // levels coarser than half size: the 30 px squares are blobs there
+    ++fine;
     float best = 1e9f;
     for (auto c : corners) best = std::min(best, std::hypot(l.x - c.x, l.y - c.y));
-    near += best < 3.0;
+    near += best < 3.0 * l.scale;
   }
-  EXPECT_GE(near, int(m.locations.size() * 0.9));
+  EXPECT_GE(fine, 30);
+  EXPECT_GE(near, int(fine * 0.9));
 }
 
 TEST(Train, RefusesATargetWithoutTexture) {

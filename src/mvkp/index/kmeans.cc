@@ -1,4 +1,4 @@
-#include "mvkp/train/kmeans.h"
+#include "mvkp/index/kmeans.h"
 
 #include <algorithm>
 #include <limits>

@@ -1,5 +1,6 @@
-// Small seeded k-means (k-means++ initialisation, Lloyd iterations) for the
-// per-location clustering of training descriptors.
+// Small seeded k-means (k-means++ initialisation, Lloyd iterations): the
+// per-location clustering of training descriptors, and the coarse quantiser
+// of a matcher's inverted file.
 #pragma once
 
 #include <cstdint>
