@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/synth/camera_view.h"
 #include "mvkp/synth/synth.h"
 #include "mvkp/train/trainer.h"
 
@@ -63,6 +64,71 @@ TEST(Matcher, AffineModeAndDynamicRatioWork) {
   mo.dynamic_goal = 40;
   const MatchResult d = Matcher(model, mo).Match(v.image);
   EXPECT_NE(d.final_ratio, mo.ratio);  // the ratio moved toward the goal
+}
+
+// Camera-model frames (synth/camera_view.h) on busy clutter: the envelope of
+// issue 18, with a fixed pose per seed.
+struct Envelope {
+  cv::Mat target = Sample("starry_night.jpg");
+  Model model = Train(target, {});
+  Matcher matcher{model};
+  cv::Mat photo = Sample("fruits.jpg", cv::IMREAD_COLOR);  // a real photo behind the target
+  int Found(double size, double tilt, int n, std::uint64_t seed0, CameraSceneOptions o = {}, bool clutter = false) const {
+    int ok = 0;
+    for (int i = 0; i < n; ++i) {
+      CameraPose p;
+      p.size_px = size;
+      p.tilt_deg = tilt;
+      p.azimuth_deg = 47.0 * i;
+      p.roll_deg = 71.0 * i;
+      const std::uint64_t seed = seed0 + std::uint64_t(i);
+      const cv::Mat bg = clutter ? MakeClutterBackground({o.width, o.height}, seed) : photo;
+      const CameraScene s = MakeCameraScene(target, bg, p, o, seed);
+      const MatchResult r = matcher.Match(s.image);
+      ok += r.found && MeanCornerError(r.homography, s.H, target.size()) < 5.0;
+    }
+    return ok;
+  }
+};
+
+const Envelope& Env() {
+  static const Envelope e;
+  return e;
+}
+
+TEST(MatcherEnvelope, TrainsAPyramidOfLevels) {
+  const Model& m = Env().model;
+  EXPECT_GE(m.params.levels, 3);  // 400 px: 400, 200, 100 (and 50)
+  int per_level[8] = {0};
+  for (const auto& l : m.locations) ++per_level[l.level];
+  for (int k = 0; k < m.params.levels; ++k) EXPECT_GE(per_level[k], 4) << "level " << k;
+  EXPECT_GT(per_level[0], per_level[1]);
+}
+
+TEST(MatcherEnvelope, FindsSmallTargets) {
+  // 80 px across a 640x480 frame: below the thesis's trained scales (0.4 x 400 px).
+  EXPECT_GE(Env().Found(80, 15, 6, 100), 3);
+  EXPECT_GE(Env().Found(120, 15, 4, 150, {}, /*clutter=*/true), 2);
+}
+
+TEST(MatcherEnvelope, FindsSteepViews) {
+  EXPECT_GE(Env().Found(300, 65, 5, 200), 3);
+}
+
+TEST(MatcherEnvelope, FindsTargetsInLargeFramesInTheFramesPixels) {
+  CameraSceneOptions o;
+  o.width = 3000;
+  o.height = 2250;
+  o.supersample = 1;
+  EXPECT_GE(Env().Found(1200, 20, 2, 300, o), 2);
+  EXPECT_GE(Env().Found(400, 10, 2, 310, o), 1);  // 170 px at the working size
+}
+
+TEST(MatcherEnvelope, FindsNothingInClutter) {
+  for (std::uint64_t seed = 400; seed < 404; ++seed) {
+    const MatchResult r = Env().matcher.Match(MakeClutterBackground({640, 480}, seed));
+    EXPECT_FALSE(r.found) << seed << ": " << r.inliers << " inliers";
+  }
 }
 
 TEST(Outline, PlausibilityCheck) {

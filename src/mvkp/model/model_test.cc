@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "mvkp/core/crc32.h"
 #include "mvkp/core/error.h"
 
 namespace mvkp {
@@ -62,6 +63,90 @@ TEST(ModelFile, RejectsDamage) {
   auto trailing = good;
   trailing.push_back(0);
   EXPECT_NE(ErrorOf(trailing).find("trailing"), std::string::npos);
+}
+
+TEST(ModelFile, KeepsLevelsAndEnvelope) {
+  Model m = Small();
+  m.params.levels = 3;
+  m.params.view_model = 2;
+  m.params.max_tilt_deg = 80;
+  m.locations[1].level = 2;
+  m.locations[1].scale = 4.f;
+  const auto bytes = SerializeModel(m);
+  const Model r = DeserializeModel(bytes.data(), bytes.size(), "x");
+  EXPECT_EQ(r.params.levels, 3);
+  EXPECT_EQ(r.params.view_model, 2);
+  EXPECT_EQ(r.params.max_tilt_deg, 80.f);
+  EXPECT_EQ(r.locations[0].level, 0);
+  EXPECT_EQ(r.locations[1].level, 2);
+  EXPECT_EQ(r.locations[1].scale, 4.f);
+  m.locations[1].level = 3;  // beyond the model's levels
+  EXPECT_THROW(SerializeModel(m), Error);
+}
+
+// A version-1 file (before the training pyramid), written field by field as
+// mvkp 0.x wrote it: it loads as one level of affine views.
+TEST(ModelFile, ReadsVersion1Files) {
+  std::vector<std::uint8_t> p;
+  auto put = [&](const auto v) {
+    const auto* b = reinterpret_cast<const std::uint8_t*>(&v);
+    p.insert(p.end(), b, b + sizeof(v));
+  };
+  put(1.0f);                       // smooth_sigma
+  put(std::int32_t(32));           // patch_size
+  put(std::int32_t(4));            // dims
+  put(std::uint8_t(1));            // orient
+  put(std::int32_t(15));           // orientation_radius
+  put(2e-4f);                      // min_strength
+  put(0.005f);                     // relative_threshold
+  put(3.f);                        // min_distance
+  put(std::int32_t(3));            // block_size
+  put(std::int32_t(100));          // views
+  put(std::int32_t(2));            // locations
+  put(std::int32_t(20));           // clusters
+  put(std::uint64_t(42));          // seed
+  put(0.4f);                       // min_scale
+  put(1.6f);                       // max_scale
+  put(123.0);                      // train_ms
+  put(std::int32_t(100));          // object_width
+  put(std::int32_t(80));           // object_height
+  put(std::uint32_t(2));           // locations: x, y, stability
+  put(10.f), put(20.f), put(std::int32_t(50));
+  put(30.f), put(40.f), put(std::int32_t(45));
+  put(std::uint32_t(2));           // centres: label, dims floats
+  put(std::int32_t(0)), put(1.f), put(2.f), put(3.f), put(4.f);
+  put(std::int32_t(1)), put(5.f), put(6.f), put(7.f), put(8.f);
+  std::vector<std::uint8_t> f = {'M', 'V', 'K', 'P', 'M', 'O', 'D', 'L'};
+  auto put_f = [&](const auto v) {
+    const auto* b = reinterpret_cast<const std::uint8_t*>(&v);
+    f.insert(f.end(), b, b + sizeof(v));
+  };
+  put_f(std::uint32_t(1));
+  put_f(std::uint64_t(p.size()));
+  f.insert(f.end(), p.begin(), p.end());
+  put_f(Crc32(p.data(), p.size()));
+  const Model m = DeserializeModel(f.data(), f.size(), "old.mvkp");
+  EXPECT_EQ(m.params.levels, 1);
+  EXPECT_EQ(m.params.view_model, 0);
+  EXPECT_EQ(m.params.views, 100);
+  ASSERT_EQ(m.locations.size(), 2u);
+  EXPECT_EQ(m.locations[1].x, 30.f);
+  EXPECT_EQ(m.locations[1].stability, 45);
+  EXPECT_EQ(m.locations[1].level, 0);
+  EXPECT_EQ(m.locations[1].scale, 1.f);
+  EXPECT_EQ(m.descriptors.at<float>(1, 3), 8.f);
+  // Saved again it is a version-2 file with the same content.
+  const auto again = SerializeModel(m);
+  EXPECT_EQ(again[8], kModelFormatVersion);
+  EXPECT_EQ(DeserializeModel(again.data(), again.size(), "x").locations[1].y, 40.f);
+}
+
+TEST(ModelFile, NewerVersionNamesBothVersions) {
+  auto future = SerializeModel(Small());
+  future[8] = 7;
+  const std::string e = ErrorOf(future);
+  EXPECT_NE(e.find("version 7"), std::string::npos) << e;
+  EXPECT_NE(e.find("1.." + std::to_string(kModelFormatVersion)), std::string::npos) << e;
 }
 
 TEST(ModelFile, MissingFileIsAnIoError) {

@@ -171,8 +171,10 @@ TEST_F(RecognizerTest, ProbedSearchRecognisesAsTheExhaustiveOneDoes) {
   ASSERT_EQ(a.found.size(), b.found.size());
   ASSERT_FALSE(a.found.empty());
   EXPECT_EQ(a.found[0].id, b.found[0].id);
-  EXPECT_EQ(a.found[0].votes, b.found[0].votes);
-  EXPECT_EQ(a.found[0].inliers, b.found[0].inliers);
+  // The inverted file computes distances as |x|^2 + |q|^2 - 2 x.q, FFVA as
+  // (x - q)^2: a match right at the ratio threshold can fall either side.
+  EXPECT_NEAR(a.found[0].votes, b.found[0].votes, 2);
+  EXPECT_NEAR(a.found[0].inliers, b.found[0].inliers, 2);
 }
 
 TEST_F(RecognizerTest, RejectsDuplicatesAndMismatchedFeatures) {

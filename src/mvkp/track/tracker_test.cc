@@ -218,9 +218,10 @@ TEST(VideoFollowerTest, TracksBetweenDetectionsAndLetsGo) {
     }
     tracked += f.mode == FrameMode::kTrack;
     focus += f.mode == FrameMode::kFocus;
-    if (!f.found.empty() && f.found[0].id == "starry" &&
-        MeanCornerError(f.found[0].homography, H, s.target.size()) < 3.0)
-      ++found;
+    // Tracked frames drift between checks (every 5th here): 3.5 px allowed.
+    const double err = f.found.empty() ? -1 : MeanCornerError(f.found[0].homography, H, s.target.size());
+    if (!f.found.empty() && f.found[0].id == "starry" && err < 3.5) ++found;
+    else ADD_FAILURE() << "frame " << i << " mode " << int(f.mode) << " error " << err;
   }
   EXPECT_EQ(found, 30);
   EXPECT_GE(tracked, 20);
