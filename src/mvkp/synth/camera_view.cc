@@ -105,25 +105,55 @@ cv::Matx33d CameraHomography(cv::Size target, cv::Size frame, const CameraPose& 
   // azimuth, roll about the ray, then turn the whole so the ray is its axis.
   const cv::Matx33d R = AlignZ(ray) * RotZ(pose.roll_deg * kDeg) * RotZ(az) * RotX(pose.tilt_deg * kDeg) * RotZ(-az);
   const double side = std::max(target.width, target.height) - 1.0;
-  double d = cam.f * side / pose.size_px;
-  cv::Matx33d H;
-  for (int it = 0; it < 30; ++it) {
-    H = PlaneHomography(cam, R, d * ray, target);
-    const double e = LongestEdge(OutlineUnder(H, target));
-    // Every corner must stay in front of the camera.
-    const double w = target.width - 1.0, h = target.height - 1.0;
+  const double w = target.width - 1.0, h = target.height - 1.0;
+  // The projected size shrinks as the plane moves away along the ray: find
+  // the distance d where the longest edge is size_px by the proportional step
+  // d * e / size_px, kept inside a bracket [too near, too far] and bisected
+  // (geometrically) whenever the step would leave it or land near an end. Near the camera a steep, off-centre plane
+  // grows much faster than 1/d, which a bare proportional update overshoots
+  // and can leave unconverged with an outline thousands of pixels long.
+  auto edge_at = [&](double dist, cv::Matx33d* Hout) {
     double zmin = 1e300;
     for (const cv::Point2d p : {cv::Point2d(0, 0), cv::Point2d(w, 0), cv::Point2d(w, h), cv::Point2d(0, h)}) {
-      const cv::Vec3d P = R * cv::Vec3d(p.x - w / 2, p.y - h / 2, 0) + d * ray;
+      const cv::Vec3d P = R * cv::Vec3d(p.x - w / 2, p.y - h / 2, 0) + dist * ray;
       zmin = std::min(zmin, P[2]);
     }
-    if (!(zmin > 1e-3 * d) || !std::isfinite(e)) {
-      d *= 2;
-      continue;
+    if (!(zmin > 1e-3 * dist)) return double(INFINITY);  // a corner behind (or at) the camera: "too near"
+    *Hout = PlaneHomography(cam, R, dist * ray, target);
+    const double e = LongestEdge(OutlineUnder(*Hout, target));
+    return std::isfinite(e) ? e : double(INFINITY);
+  };
+  double d = cam.f * side / pose.size_px;
+  double lo = 0, hi = INFINITY;  // distances known too near / too far
+  cv::Matx33d H = cv::Matx33d::eye(), best = H;
+  double best_err = INFINITY;
+  for (int it = 0; it < 100; ++it) {
+    cv::Matx33d Hd;
+    const double e = edge_at(d, &Hd);
+    if (std::isfinite(e)) {
+      const double err = std::abs(e - pose.size_px);
+      if (err < best_err) {
+        best_err = err;
+        best = Hd;
+      }
+      if (err < 1e-3 * pose.size_px) break;
     }
-    if (std::abs(e - pose.size_px) < 1e-3 * pose.size_px) break;
-    d *= e / pose.size_px;
+    if (e > pose.size_px) lo = std::max(lo, d);
+    else hi = std::min(hi, d);
+    double next = std::isfinite(e) ? d * e / pose.size_px : 2 * d;
+    if (lo > 0 && std::isfinite(hi)) {
+      // Bracketed: take the step only if it lands well inside (in log d);
+      // near an end it would creep along one side (false position).
+      const double f = std::log(next / lo) / std::log(hi / lo);
+      if (!(f > 0.1 && f < 0.9)) next = std::sqrt(lo * hi);
+    } else if (!(next > lo && next < hi)) {
+      next = std::isfinite(hi) ? 0.5 * hi : 2 * std::max(d, lo);
+    }
+    d = next;
   }
+  Require(best_err < 0.01 * pose.size_px, ErrorCode::kInvalidArgument,
+          "no camera distance gives the target an apparent size of " + std::to_string(pose.size_px) + " px in this pose");
+  H = best;
   return H;
 }
 
@@ -146,7 +176,6 @@ cv::Mat MakeClutterBackground(cv::Size size, std::uint64_t seed, bool colour) {
           "clutter size must be within 8..16384 pixels per side");
   std::mt19937_64 rng(seed);
   auto U = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-  const int type = colour ? CV_8UC3 : CV_8UC1;
   auto Colour = [&] {
     return colour ? cv::Scalar(U(0, 255), U(0, 255), U(0, 255)) : cv::Scalar(U(0, 255));
   };
