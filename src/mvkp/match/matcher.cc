@@ -30,6 +30,8 @@ void MatchOptions::Check() const {
   Require(grid_share >= 0.f && grid_share <= 1.f, ErrorCode::kInvalidArgument, "grid share must be in [0, 1]");
   Require(half_res_points >= 0 && half_res_points <= 100000, ErrorCode::kInvalidArgument,
           "half-resolution points must be in 0..100000");
+  Require(first_pass_points >= 0 && first_pass_points <= 100000, ErrorCode::kInvalidArgument,
+          "first-pass points must be in 0..100000");
   Require(retry_below_inliers >= 0, ErrorCode::kInvalidArgument, "retry threshold must be >= 0");
   Require(ratio > 0.f && ratio <= 1.f, ErrorCode::kInvalidArgument, "ratio must be in (0, 1]");
   Require(dynamic_goal >= 0, ErrorCode::kInvalidArgument, "dynamic goal must be >= 0");
@@ -433,6 +435,46 @@ void AddTime(MatchTiming& a, const MatchTiming& b) {
 }
 
 // The better of two results: found beats not found, then more inliers.
+// The first n of `kps` (strongest first) in round-robin order over a grid of
+// `cells` cells along the longer side, and the rest: a subset that covers the
+// frame as the full set does.
+void SpreadSplit(const std::vector<Keypoint>& kps, cv::Size size, int cells, int n, std::vector<int>& first,
+                 std::vector<int>& rest) {
+  const double side = double(std::max(size.width, size.height)) / std::max(1, cells);
+  const int cw = std::max(1, int(std::ceil(size.width / side))), ch = std::max(1, int(std::ceil(size.height / side)));
+  std::vector<std::vector<int>> bucket(std::size_t(cw) * ch);
+  for (int i = 0; i < int(kps.size()); ++i) {
+    const int cx = std::clamp(int(kps[i].x / side), 0, cw - 1), cy = std::clamp(int(kps[i].y / side), 0, ch - 1);
+    bucket[std::size_t(cy) * cw + cx].push_back(i);
+  }
+  std::vector<char> in(kps.size(), 0);
+  first.clear();
+  rest.clear();
+  for (std::size_t k = 0; int(first.size()) < n; ++k) {
+    bool any = false;
+    for (const auto& b : bucket)
+      if (k < b.size() && int(first.size()) < n) {
+        first.push_back(b[k]);
+        in[b[k]] = 1;
+        any = true;
+      }
+    if (!any) break;
+  }
+  for (int i = 0; i < int(kps.size()); ++i)
+    if (!in[i]) rest.push_back(i);
+}
+
+Features Subset(const Features& f, const std::vector<int>& idx) {
+  Features s;
+  s.keypoints.reserve(idx.size());
+  s.descriptors.create(int(idx.size()), f.descriptors.cols, CV_32F);
+  for (int k = 0; k < int(idx.size()); ++k) {
+    s.keypoints.push_back(f.keypoints[idx[k]]);
+    f.descriptors.row(idx[k]).copyTo(s.descriptors.row(k));
+  }
+  return s;
+}
+
 bool Better(const MatchResult& a, const MatchResult& b) {
   if (a.found != b.found) return a.found;
   return a.inliers > b.inliers;
@@ -486,9 +528,18 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
   r.time.smooth_ms = f.smooth_ms;
   r.time.detect_ms = f.detect_ms;
   r.time.describe_ms = f.describe_ms;
-  SearchAndFilter(f, 0, r);
   QueryPoints q;
   if (options_.refine) q.Add(f);
+  if (options_.first_pass_points > 0 && int(f.keypoints.size()) > options_.first_pass_points) {
+    std::vector<int> first, rest;
+    SpreadSplit(f.keypoints, gray.size(), options_.grid_cells, options_.first_pass_points, first, rest);
+    SearchAndFilter(Subset(f, first), 0, r);
+    Verify(r, q);
+    if (r.found && r.inliers >= options_.retry_below_inliers) return r;
+    SearchAndFilter(Subset(f, rest), 0, r);
+  } else {
+    SearchAndFilter(f, 0, r);
+  }
   Verify(r, q);
   if (r.found && r.inliers >= options_.retry_below_inliers) return r;
 

@@ -124,6 +124,31 @@ TEST(MatcherEnvelope, FindsTargetsInLargeFramesInTheFramesPixels) {
   EXPECT_GE(Env().Found(400, 10, 2, 310, o), 1);  // 170 px at the working size
 }
 
+// Two passes: an easy frame is settled by the first, frame-spread half of the
+// points (fewer matches searched, same answer); a frame the first pass cannot
+// settle searches every point, as with first_pass_points = 0.
+TEST(MatcherEnvelope, FirstPassSettlesEasyFramesAndFallsThroughOnHardOnes) {
+  const Envelope& e = Env();
+  MatchOptions all;
+  all.first_pass_points = 0;
+  const Matcher one_pass(e.model, all);
+  CameraPose p;
+  p.size_px = 380;
+  p.tilt_deg = 20;
+  p.roll_deg = 30;
+  const CameraScene easy = MakeCameraScene(e.target, e.photo, p, {}, 500);
+  const MatchResult a = e.matcher.Match(easy.image), b = one_pass.Match(easy.image);
+  ASSERT_TRUE(a.found && b.found);
+  EXPECT_LT(MeanCornerError(a.homography, easy.H, e.target.size()), 5.0);
+  EXPECT_GE(a.inliers, e.matcher.options().retry_below_inliers);
+  EXPECT_LT(a.matches.size(), b.matches.size());  // only the first pass was searched
+  // Nothing to find: both passes run, so every point is searched.
+  const cv::Mat clutter = MakeClutterBackground({640, 480}, 501);
+  const MatchResult c = e.matcher.Match(clutter);
+  EXPECT_FALSE(c.found);
+  EXPECT_EQ(c.matches.size(), one_pass.Match(clutter).matches.size());
+}
+
 TEST(MatcherEnvelope, FindsNothingInClutter) {
   for (std::uint64_t seed = 400; seed < 404; ++seed) {
     const MatchResult r = Env().matcher.Match(MakeClutterBackground({640, 480}, seed));
