@@ -259,9 +259,16 @@ TEST_F(RecognizerTest, WordsFindNothingInNonTargetsAndForgetRemovedTargets) {
       EXPECT_TRUE(r.found.empty()) << other << " view " << i << ": " << r.found[0].id << " " << r.found[0].inliers;
     }
   }
+  // A view the word search finds (it finds 5-9 of 10, see above): the test
+  // is about forgetting, so take the first of ten that is found.
   const cv::Mat& img = images_->at("building");
-  const SceneView v = MakeSceneView(img, SceneOptions{}, 4000);
-  ASSERT_TRUE(Find(rec.Recognize(v.image), "building"));
+  SceneView v;
+  bool seen = false;
+  for (std::uint64_t seed = 4000; seed < 4010 && !seen; ++seed) {
+    v = MakeSceneView(img, SceneOptions{}, seed);
+    seen = Find(rec.Recognize(v.image), "building");
+  }
+  ASSERT_TRUE(seen) << "none of 10 views of 'building' recognised";
   const std::size_t before = rec.memory_bytes();
   EXPECT_TRUE(rec.Remove("building"));
   EXPECT_LT(rec.memory_bytes(), before);
