@@ -91,7 +91,8 @@ struct Outcome {
   bool ran = false, found = false;
   double err = INFINITY, ms = 0;
   int inliers = 0, keypoints = 0, support = 0;
-  int matches = -1, correct = -1, on_target = -1, repeat = -1, nn_ok = -1;  // ratio-test matches, those within 5 px of the truth, query points on the target
+  int matches = -1, correct = -1, on_target = -1, repeat = -1, nn_ok = -1;
+  double hull = -1;  // mvkp: share of the target's area inside the convex hull of the inliers' object points  // ratio-test matches, those within 5 px of the truth, query points on the target
   MatchTiming split;
 };
 
@@ -241,7 +242,7 @@ int RunSweep(SweepArgs& a) {
   std::ofstream csv(fs::path(a.out) / "sweep.csv");
   Require(bool(csv), ErrorCode::kIo, a.out + "/sweep.csv: cannot write");
   csv << "frame,target,family,bin,size_px,tilt_deg,azimuth_deg,roll_deg,hfov_deg,inside,method,found,corner_err,ok5,ms,"
-         "detect_ms,describe_ms,search_ms,verify_ms,inliers,keypoints,matches,correct,on_target,support,repeat,nn_ok\n";
+         "detect_ms,describe_ms,search_ms,verify_ms,inliers,keypoints,matches,correct,on_target,support,repeat,nn_ok,inlier_hull\n";
   std::ofstream manifest;
   if (a.save_frames) manifest.open(fs::path(a.out) / "frames" / "manifest.txt");
   std::vector<std::vector<Outcome>> results(frames.size());
@@ -280,7 +281,16 @@ int RunSweep(SweepArgs& a) {
         o.inliers = r.inliers;
         o.support = r.support;
         o.keypoints = r.keypoints;
-        if (r.found) o.err = MeanCornerError(r.homography, s.H, t.gray.size());
+        if (r.found) {
+          o.err = MeanCornerError(r.homography, s.H, t.gray.size());
+          std::vector<cv::Point2f> pts, hull;
+          for (const auto& mm : r.matches)
+            if (mm.inlier) pts.push_back(mm.object);
+          if (pts.size() >= 3) {
+            cv::convexHull(pts, hull);
+            o.hull = cv::contourArea(hull) / double(t.gray.cols * t.gray.rows);
+          }
+        }
         o.matches = int(r.matches.size());
         o.correct = 0;
         for (const auto& mm : r.matches) {
@@ -341,7 +351,7 @@ int RunSweep(SweepArgs& a) {
             << Csv(o.split.search_ms) << "," << Csv(o.split.verify_ms);
       else
         csv << ",,,";
-      csv << "," << o.inliers << "," << o.keypoints << "," << o.matches << "," << o.correct << "," << o.on_target << "," << o.support << "," << o.repeat << "," << o.nn_ok << "\n";
+      csv << "," << o.inliers << "," << o.keypoints << "," << o.matches << "," << o.correct << "," << o.on_target << "," << o.support << "," << o.repeat << "," << o.nn_ok << "," << (o.hull >= 0 ? Csv(o.hull) : "") << "\n";
       results[i].push_back(o);
     }
     Progress("sweep: frame", int(i + 1), int(frames.size()));
