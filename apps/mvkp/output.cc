@@ -108,6 +108,9 @@ void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
   cmd->add_option("--first-pass-points", o->first_pass_points,
                   "search this many frame-spread points first; the rest only if that finds too few inliers (0: all)")
       ->capture_default_str();
+  cmd->add_option("--steep-anisotropy", o->steep_anisotropy,
+                  "found weakly at least this steep (cos tilt): also try the simulated tilts (0: off)")
+      ->capture_default_str();
   cmd->add_option("--retry-below-inliers", o->retry_below_inliers, "found with fewer inliers: also search half resolution")
       ->capture_default_str();
   cmd->add_option("--upsample-points", o->upsample_points, "not found: points from the frame upsampled twice (0: off)")

@@ -32,6 +32,8 @@ void MatchOptions::Check() const {
           "half-resolution points must be in 0..100000");
   Require(first_pass_points >= 0 && first_pass_points <= 100000, ErrorCode::kInvalidArgument,
           "first-pass points must be in 0..100000");
+  Require(steep_anisotropy >= 0 && steep_anisotropy <= 1, ErrorCode::kInvalidArgument,
+          "steep anisotropy must be in [0, 1]");
   Require(retry_below_inliers >= 0, ErrorCode::kInvalidArgument, "retry threshold must be >= 0");
   Require(ratio > 0.f && ratio <= 1.f, ErrorCode::kInvalidArgument, "ratio must be in (0, 1]");
   Require(dynamic_goal >= 0, ErrorCode::kInvalidArgument, "dynamic goal must be >= 0");
@@ -475,6 +477,21 @@ Features Subset(const Features& f, const std::vector<int>& idx) {
   return s;
 }
 
+// Smaller over larger singular value of H's Jacobian at the object's centre:
+// cos(tilt) for a plane seen from afar, 1 for a frontal view.
+double Anisotropy(const cv::Matx33d& H, int w, int h) {
+  const double x0 = 0.5 * (w - 1), y0 = 0.5 * (h - 1);
+  const double d = H(2, 0) * x0 + H(2, 1) * y0 + H(2, 2);
+  if (!(std::abs(d) > 1e-12)) return 0;
+  const double x = (H(0, 0) * x0 + H(0, 1) * y0 + H(0, 2)) / d, y = (H(1, 0) * x0 + H(1, 1) * y0 + H(1, 2)) / d;
+  const double a = (H(0, 0) - x * H(2, 0)) / d, b = (H(0, 1) - x * H(2, 1)) / d;
+  const double c = (H(1, 0) - y * H(2, 0)) / d, e = (H(1, 1) - y * H(2, 1)) / d;
+  const double s1 = a * a + b * b + c * c + e * e, det = std::abs(a * e - b * c);
+  const double disc = std::sqrt(std::max(0.0, s1 * s1 - 4 * det * det));
+  const double big = std::sqrt((s1 + disc) / 2), small = std::sqrt(std::max(0.0, (s1 - disc) / 2));
+  return big > 0 ? small / big : 0;
+}
+
 bool Better(const MatchResult& a, const MatchResult& b) {
   if (a.found != b.found) return a.found;
   return a.inliers > b.inliers;
@@ -572,11 +589,16 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
       r.keypoints = kps;
     }
   }
-  if (r.found) return r;
+  // Found, but weakly and as a steep view: the fit may rest on the near part
+  // of the target, with the far corners off. The simulated tilts below see
+  // the whole target less foreshortened; run them too and keep the better.
+  const bool weak_steep = r.found && r.inliers < options_.retry_below_inliers && options_.steep_anisotropy > 0 &&
+                          Anisotropy(r.homography, model_.object_width, model_.object_height) < options_.steep_anisotropy;
+  if (r.found && !(tilt && weak_steep)) return r;
 
   // Not found: the target may be smaller than the smallest trained level
   // covers. Search the frame upsampled twice (its points mapped back).
-  if (upsample && options_.upsample_points > 0) {
+  if (!r.found && upsample && options_.upsample_points > 0) {
     Timer tu;
     cv::Mat up;
     cv::resize(gray, up, cv::Size(gray.cols * 2, gray.rows * 2), 0, 0, cv::INTER_LINEAR);

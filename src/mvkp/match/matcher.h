@@ -63,6 +63,11 @@ struct MatchOptions {
   // the target (12 simulated views, about 60-100 ms at 640x480).
   std::vector<float> tilt_factors = {2.5f, 4.5f};
   int tilt_directions = 6;
+  // Also simulate the tilts when the target was found with fewer than
+  // retry_below_inliers inliers as a view this steep (smaller over larger
+  // local scale at its centre, cos(tilt); 0.4 ~ 66 degrees), and keep the fit
+  // with more inliers. 0: only when not found.
+  double steep_anisotropy = 0.4;
   int tilt_points = 600;
   float ratio = 0.85f;           // distance-ratio test on distances (not squared); SPEC: 0.85 with orientation
   int dynamic_goal = 0;          // > 0: steer the ratio toward this many kept matches (thesis §3.2.3)
