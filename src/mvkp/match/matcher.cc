@@ -13,6 +13,7 @@
 #include "mvkp/index/ffva.h"
 #include "mvkp/index/ivf.h"
 #include "mvkp/index/kmeans.h"
+#include "mvkp/synth/camera_view.h"
 
 namespace mvkp {
 
@@ -477,19 +478,11 @@ Features Subset(const Features& f, const std::vector<int>& idx) {
   return s;
 }
 
-// Smaller over larger singular value of H's Jacobian at the object's centre:
-// cos(tilt) for a plane seen from afar, 1 for a frontal view.
+// Smaller over larger local scale of H at the object's centre: cos(tilt) for
+// a plane seen from afar, 1 for a frontal view (0 when degenerate).
 double Anisotropy(const cv::Matx33d& H, int w, int h) {
-  const double x0 = 0.5 * (w - 1), y0 = 0.5 * (h - 1);
-  const double d = H(2, 0) * x0 + H(2, 1) * y0 + H(2, 2);
-  if (!(std::abs(d) > 1e-12)) return 0;
-  const double x = (H(0, 0) * x0 + H(0, 1) * y0 + H(0, 2)) / d, y = (H(1, 0) * x0 + H(1, 1) * y0 + H(1, 2)) / d;
-  const double a = (H(0, 0) - x * H(2, 0)) / d, b = (H(0, 1) - x * H(2, 1)) / d;
-  const double c = (H(1, 0) - y * H(2, 0)) / d, e = (H(1, 1) - y * H(2, 1)) / d;
-  const double s1 = a * a + b * b + c * c + e * e, det = std::abs(a * e - b * c);
-  const double disc = std::sqrt(std::max(0.0, s1 * s1 - 4 * det * det));
-  const double big = std::sqrt((s1 + disc) / 2), small = std::sqrt(std::max(0.0, (s1 - disc) / 2));
-  return big > 0 ? small / big : 0;
+  const cv::Vec2d sc = LocalScales(H, {0.5 * (w - 1), 0.5 * (h - 1)});
+  return sc[1] > 0 && std::isfinite(sc[1]) ? sc[0] / sc[1] : 0;
 }
 
 bool Better(const MatchResult& a, const MatchResult& b) {
