@@ -362,6 +362,18 @@ int RunSweep(SweepArgs& a) {
   struct Cell {
     int n = 0, ok5 = 0, ok10 = 0;
     std::vector<double> ms, det, desc, search, verify;
+    void Add(const Outcome& o) {
+      ++n;
+      ok5 += o.err < 5;
+      ok10 += o.err < 10;
+      ms.push_back(o.ms);
+      if (o.method == "mvkp") {
+        det.push_back(o.split.smooth_ms + o.split.detect_ms);
+        desc.push_back(o.split.describe_ms);
+        search.push_back(o.split.search_ms);
+        verify.push_back(o.split.verify_ms);
+      }
+    }
   };
   auto collect = [&](const std::string& family, const Range& r, bool by_size) {
     std::map<std::string, Cell> cells;
@@ -370,20 +382,8 @@ int RunSweep(SweepArgs& a) {
       if (f.family != family) continue;
       const double v = by_size ? f.pose.size_px : f.pose.tilt_deg;
       if (v < r.lo || v >= r.hi) continue;
-      for (const auto& o : results[i]) {
-        if (!o.ran) continue;
-        Cell& c = cells[o.method];
-        ++c.n;
-        c.ok5 += o.err < 5;
-        c.ok10 += o.err < 10;
-        c.ms.push_back(o.ms);
-        if (o.method == "mvkp") {
-          c.det.push_back(o.split.smooth_ms + o.split.detect_ms);
-          c.desc.push_back(o.split.describe_ms);
-          c.search.push_back(o.split.search_ms);
-          c.verify.push_back(o.split.verify_ms);
-        }
-      }
+      for (const auto& o : results[i])
+        if (o.ran) cells[o.method].Add(o);
     }
     return cells;
   };
@@ -460,19 +460,7 @@ int RunSweep(SweepArgs& a) {
     std::map<std::string, Cell> all;
     for (std::size_t i = 0; i < frames.size(); ++i)
       for (const auto& o : results[i])
-        if (o.ran) {
-          Cell& c = all[o.method];
-          ++c.n;
-          c.ok5 += o.err < 5;
-          c.ok10 += o.err < 10;
-          c.ms.push_back(o.ms);
-          if (o.method == "mvkp") {
-            c.det.push_back(o.split.smooth_ms + o.split.detect_ms);
-            c.desc.push_back(o.split.describe_ms);
-            c.search.push_back(o.split.search_ms);
-            c.verify.push_back(o.split.verify_ms);
-          }
-        }
+        if (o.ran) all[o.method].Add(o);
     summary["all"] = table_row("all frames", all);
   }
   md << "\nTraining: ";

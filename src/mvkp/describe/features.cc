@@ -128,6 +128,14 @@ void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, flo
   }
 }
 
+cv::Mat ScaleFrameDown(const cv::Mat& gray, double f) {
+  if (!(f < 1.0)) return gray;
+  cv::Mat img;
+  cv::resize(gray, img, cv::Size(std::max(1, int(std::lround(gray.cols * f))), std::max(1, int(std::lround(gray.rows * f)))),
+             0, 0, cv::INTER_AREA);
+  return img;
+}
+
 Features ExtractFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask) {
   CV_Assert(gray.type() == CV_8UC1);
   Features f;

@@ -62,6 +62,11 @@ struct Features {
   double smooth_ms = 0, detect_ms = 0, describe_ms = 0;
 };
 
+// The frame scaled by f: area-averaged to round(f * size) (at least 1x1)
+// when f < 1, the frame itself (not copied) otherwise. Used where large
+// frames are searched at a working size.
+cv::Mat ScaleFrameDown(const cv::Mat& gray, double f);
+
 // Smooths, detects and describes. Detection is restricted to mask != 0 if a
 // mask (CV_8UC1, same size) is given.
 Features ExtractFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask = cv::Mat());

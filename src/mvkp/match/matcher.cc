@@ -507,12 +507,7 @@ MatchResult Matcher::Match(const cv::Mat& gray) const {
   bool first = true;
   for (double f = double(options_.working_size) / side;; f = std::min(1.0, 2 * f)) {
     Timer t;
-    cv::Mat img;
-    if (f < 1.0)
-      cv::resize(gray, img, cv::Size(std::max(1, int(std::lround(gray.cols * f))), std::max(1, int(std::lround(gray.rows * f)))),
-                 0, 0, cv::INTER_AREA);
-    else
-      img = gray;
+    const cv::Mat img = ScaleFrameDown(gray, f);
     const double fx = double(img.cols) / gray.cols;
     const double resample_ms = t.ElapsedMs();
     // Steep views are simulated at the working size only (their cost grows with the pixels).
@@ -553,19 +548,18 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
   Verify(r, q);
   if (r.found && r.inliers >= options_.retry_below_inliers) return r;
 
-  // Not found, or weakly: the target may appear larger than the trained view
-  // range. Add points from half resolution, verify again, keep the better.
-  if (options_.half_res_points > 0 && gray.cols >= 64 && gray.rows >= 64) {
-    const MatchResult first = r;
-    Timer th;
-    cv::Mat half;
-    cv::resize(gray, half, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
-    r.time.smooth_ms += th.ElapsedMs();
-    fo.detector.max_points = options_.half_res_points;
-    Features g = ExtractFeatures(half, fo);
-    for (auto& k : g.keypoints) {  // half-resolution pixel centres at full resolution
-      k.x = 2 * k.x + 0.5f;
-      k.y = 2 * k.y + 0.5f;
+  // One more set of points from a resampled copy of the frame (`to_frame`
+  // maps its pixel coordinates back), searched and verified with the rest.
+  auto add_pass = [&](int interpolation, cv::Size size, int points, auto to_frame) {
+    Timer tr;
+    cv::Mat img;
+    cv::resize(gray, img, size, 0, 0, interpolation);
+    r.time.smooth_ms += tr.ElapsedMs();
+    fo.detector.max_points = points;
+    Features g = ExtractFeatures(img, fo);
+    for (auto& k : g.keypoints) {
+      k.x = to_frame(k.x);
+      k.y = to_frame(k.y);
     }
     r.time.smooth_ms += g.smooth_ms;
     r.time.detect_ms += g.detect_ms;
@@ -574,6 +568,15 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
     SearchAndFilter(g, 0, r);
     if (options_.refine) q.Add(g);
     Verify(r, q);
+  };
+
+  // Not found, or weakly: the target may appear larger than the trained view
+  // range. Add points from half resolution, verify again, keep the better.
+  if (options_.half_res_points > 0 && gray.cols >= 64 && gray.rows >= 64) {
+    const MatchResult first = r;
+    // half-resolution pixel centres at full resolution
+    add_pass(cv::INTER_AREA, cv::Size(gray.cols / 2, gray.rows / 2), options_.half_res_points,
+             [](float v) { return 2 * v + 0.5f; });
     if (first.found && r.inliers <= first.inliers) {
       MatchTiming t = r.time;
       const int kps = r.keypoints;
@@ -592,23 +595,9 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
   // Not found: the target may be smaller than the smallest trained level
   // covers. Search the frame upsampled twice (its points mapped back).
   if (!r.found && upsample && options_.upsample_points > 0) {
-    Timer tu;
-    cv::Mat up;
-    cv::resize(gray, up, cv::Size(gray.cols * 2, gray.rows * 2), 0, 0, cv::INTER_LINEAR);
-    r.time.smooth_ms += tu.ElapsedMs();
-    fo.detector.max_points = options_.upsample_points;
-    Features u = ExtractFeatures(up, fo);
-    for (auto& k : u.keypoints) {  // double-resolution pixel centres at full resolution
-      k.x = (k.x + 0.5f) / 2 - 0.5f;
-      k.y = (k.y + 0.5f) / 2 - 0.5f;
-    }
-    r.time.smooth_ms += u.smooth_ms;
-    r.time.detect_ms += u.detect_ms;
-    r.time.describe_ms += u.describe_ms;
-    r.keypoints += int(u.keypoints.size());
-    SearchAndFilter(u, 0, r);
-    if (options_.refine) q.Add(u);
-    Verify(r, q);
+    // double-resolution pixel centres at full resolution
+    add_pass(cv::INTER_LINEAR, cv::Size(gray.cols * 2, gray.rows * 2), options_.upsample_points,
+             [](float v) { return (v + 0.5f) / 2 - 0.5f; });
     if (r.found) return r;
   }
   if (!tilt || options_.tilt_directions <= 0 || options_.tilt_factors.empty() || gray.cols < 64 || gray.rows < 64) return r;

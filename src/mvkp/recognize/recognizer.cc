@@ -671,12 +671,7 @@ RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const {
   RecognitionResult total;
   for (double f = double(work) / side;; f = std::min(1.0, 2 * f)) {
     Timer t;
-    cv::Mat img;
-    if (f < 1.0)
-      cv::resize(gray, img, cv::Size(std::max(1, int(std::lround(gray.cols * f))), std::max(1, int(std::lround(gray.rows * f)))),
-                 0, 0, cv::INTER_AREA);
-    else
-      img = gray;
+    const cv::Mat img = ScaleFrameDown(gray, f);
     const double resample_ms = t.ElapsedMs();
     RecognitionResult r = Search(img, -1, options_);
     const double fx = double(img.cols) / gray.cols, a = 1.0 / fx, b = 0.5 / fx - 0.5;

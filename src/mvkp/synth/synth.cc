@@ -9,8 +9,6 @@
 #include "mvkp/core/error.h"
 
 namespace mvkp {
-namespace {
-
 double RadicalInverse(int base, std::uint64_t i) {
   double f = 1.0, r = 0.0;
   while (i > 0) {
@@ -20,6 +18,8 @@ double RadicalInverse(int base, std::uint64_t i) {
   }
   return r;
 }
+
+namespace {
 
 cv::Matx22d Rot(double a) { return {std::cos(a), -std::sin(a), std::sin(a), std::cos(a)}; }
 

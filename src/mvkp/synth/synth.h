@@ -29,6 +29,10 @@ struct ViewSamplerOptions {
 // random shift (Cranley–Patterson), so coverage is even and reproducible.
 std::vector<AffineParams> SampleAffineViews(int n, const ViewSamplerOptions& options);
 
+// The van der Corput radical inverse of i in `base` (the Halton sequence's
+// coordinates): digits of i mirrored behind the point, in [0, 1).
+double RadicalInverse(int base, std::uint64_t i);
+
 // Warps src into a dst of `size` by H (src pixels -> dst pixels). Where H
 // shrinks the image, src is low-pass filtered first so the view is not aliased.
 // If mask is given, it receives 255 where dst shows src.

@@ -37,16 +37,6 @@ struct ViewSpec {
 
 constexpr double kDeg = CV_PI / 180.0;
 
-double RadicalInverse(int base, std::uint64_t i) {
-  double f = 1.0, r = 0.0;
-  while (i > 0) {
-    f /= base;
-    r += f * double(i % base);
-    i /= base;
-  }
-  return r;
-}
-
 // Places the warped outline with `margin` pixels of background around it.
 ViewSpec Frame(const cv::Matx33d& H0, cv::Size level, int margin, int t1, int t2) {
   const auto q = OutlineUnder(H0, level);
