@@ -37,11 +37,13 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <cctype>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <utility>
 
 #include "mvkp/core/error.h"
+#include "mvkp/db/json_limits.h"
 
 namespace mvkp {
 namespace {
@@ -233,7 +235,7 @@ class WriteTxn {
   const Conn& s_;
 };
 
-void ValidateInfo(const std::string& path, const TargetInfo& info) {
+void ValidateInfo(const std::string& path, const TargetInfo& info, bool new_id) {
   const std::string bad = path + ": invalid target id";
   Require(!info.id.empty(), ErrorCode::kInvalidArgument, bad + ": empty");
   Require(info.id.size() <= kMaxIdBytes, ErrorCode::kInvalidArgument,
@@ -244,25 +246,50 @@ void ValidateInfo(const std::string& path, const TargetInfo& info) {
             bad + ": control character at byte " + std::to_string(i));
   }
   Require(ValidUtf8(info.id), ErrorCode::kInvalidArgument, bad + ": not valid UTF-8");
-  Require(info.width >= 0 && info.height >= 0, ErrorCode::kInvalidArgument,
-          path + ": target '" + info.id + "': negative image size");
-  nlohmann::json meta;
-  try {
-    meta = nlohmann::json::parse(info.meta);
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(ErrorCode::kInvalidArgument,
-                path + ": target '" + info.id + "': meta is not valid JSON: " + e.what());
+  if (new_id) {
+    auto alnum = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9'); };
+    Require(alnum(info.id[0]), ErrorCode::kInvalidArgument,
+            bad + " '" + info.id + "': must start with a letter or digit");
+    for (char c : info.id)
+      Require(alnum(c) || c == '.' || c == '_' || c == '-', ErrorCode::kInvalidArgument,
+              bad + " '" + info.id + "': only ASCII letters, digits, '.', '_' and '-' are allowed");
   }
-  Require(meta.is_object(), ErrorCode::kInvalidArgument,
-          path + ": target '" + info.id + "': meta must be a JSON object");
+  const std::string who = path + ": target '" + info.id + "': ";
+  auto text = [&](const char* field, const std::string& v, std::size_t max) {
+    Require(v.size() <= max, ErrorCode::kInvalidArgument,
+            who + field + " is " + std::to_string(v.size()) + " bytes, at most " + std::to_string(max));
+    Require(ValidUtf8(v), ErrorCode::kInvalidArgument, who + field + " is not valid UTF-8");
+    for (unsigned char c : v)
+      Require(c >= 0x20 && c != 0x7f, ErrorCode::kInvalidArgument, who + field + " contains a control character");
+  };
+  text("title", info.title, 1000);
+  text("artist", info.artist, 1000);
+  text("year", info.year, 100);
+  text("url", info.url, 2000);
+  if (!info.url.empty()) {
+    std::string lower = info.url.substr(0, 8);
+    for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+    const std::size_t rest = lower.rfind("https://", 0) == 0 ? 8 : lower.rfind("http://", 0) == 0 ? 7 : 0;
+    Require(rest > 0 && info.url.size() > rest, ErrorCode::kInvalidArgument,
+            who + "url must be an absolute http:// or https:// URL");
+    Require(info.url.find_first_of(" \"<>`") == std::string::npos, ErrorCode::kInvalidArgument,
+            who + "url must not contain spaces, quotes or angle brackets");
+  }
+  Require(info.width >= 0 && info.height >= 0, ErrorCode::kInvalidArgument, who + "negative image size");
+  const nlohmann::json meta = ParseJsonLimited(info.meta, MetaJsonLimits(), who + "meta");
+  Require(meta.is_object(), ErrorCode::kInvalidArgument, who + "meta must be a JSON object");
 }
 
 void ValidateRecord(const std::string& path, const TargetRecord& r) {
-  ValidateInfo(path, r.info);
+  ValidateInfo(path, r.info, /*new_id=*/true);
   Require(!r.model.empty(), ErrorCode::kInvalidArgument, path + ": target '" + r.info.id + "': empty model");
 }
 
 }  // namespace
+
+void ValidateTargetInfo(const TargetInfo& info, bool new_id, const std::string& where) {
+  ValidateInfo(where, info, new_id);
+}
 
 struct TargetStore::Impl : Conn {};
 
@@ -482,7 +509,7 @@ bool TargetStore::Remove(const std::string& id) {
 
 bool TargetStore::UpdateInfo(const TargetInfo& info) {
   impl_->RequireWritable();
-  ValidateInfo(impl_->path, info);
+  ValidateInfo(impl_->path, info, /*new_id=*/false);
   WriteTxn txn(*impl_);
   // The image, its size, the model and added_at stay as they are.
   Stmt st(*impl_, "UPDATE targets SET title = ?2, artist = ?3, year = ?4, url = ?5, meta = ?6 WHERE id = ?1");

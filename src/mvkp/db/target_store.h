@@ -26,9 +26,15 @@ namespace mvkp {
 constexpr int kTargetStoreSchemaVersion = 2;
 
 struct TargetInfo {
-  std::string id;      // non-empty, at most 256 bytes, no control characters
+  // A new id: 1-256 bytes of ASCII letters, digits, '.', '_' and '-', starting
+  // with a letter or digit (so no "." or ".."; ids are URL path segments).
+  // Targets stored before that rule keep their ids (no control characters).
+  std::string id;
+  // UTF-8 without control characters; title and artist at most 1000 bytes,
+  // year 100. url: empty or an absolute http:// or https:// URL of at most
+  // 2000 bytes without spaces (it becomes a link on visitors' phones).
   std::string title, artist, year, url;
-  std::string meta = "{}";  // a JSON object (validated)
+  std::string meta = "{}";  // a JSON object, at most 64 KiB and 16 levels deep
   int width = 0, height = 0;  // of the target image
   std::string added_at;       // set by the store
 };
@@ -45,6 +51,11 @@ struct TargetRecord {
 // One TargetStore (one SQLite connection) is for one thread at a time;
 // separate TargetStore objects, in threads or processes, may read
 // concurrently while at most one writes (a second writer waits up to 5 s).
+// Checks `info` as Add (`new_id`) or UpdateInfo would and throws
+// Error(kInvalidArgument) naming `where`, the target and the field. It is
+// cheap: callers that train before adding call it first.
+void ValidateTargetInfo(const TargetInfo& info, bool new_id, const std::string& where = "target");
+
 class TargetStore {
  public:
   enum class Mode { kReadOnly, kReadWrite };

@@ -126,7 +126,8 @@ TEST_F(TargetStoreTest, CreateAddListGetRemoveRoundTrip) {
     TargetRecord a = Record("a", 3000, 3, 0);  // no image
     a.info.meta = "{}";
     store.Add(a);
-    TargetRecord u = Record("Mona Lisa — \xc3\xa9t\xc3\xa9", 10, 4);  // UTF-8 id
+    TargetRecord u = Record("Mona-Lisa", 10, 4);
+    u.info.title = "Mona Lisa — \xc3\xa9t\xc3\xa9";  // UTF-8 text
     store.Add(u);
     EXPECT_EQ(store.Count(), 3u);
     EXPECT_TRUE(store.Contains("a"));
@@ -135,7 +136,8 @@ TEST_F(TargetStoreTest, CreateAddListGetRemoveRoundTrip) {
   TargetStore store = TargetStore::Open(db_, TargetStore::Mode::kReadWrite);
   const auto list = store.List();
   ASSERT_EQ(list.size(), 3u);
-  EXPECT_EQ(list[0].id, "Mona Lisa — \xc3\xa9t\xc3\xa9");
+  EXPECT_EQ(list[0].id, "Mona-Lisa");
+  EXPECT_EQ(list[0].title, "Mona Lisa — \xc3\xa9t\xc3\xa9");
   EXPECT_EQ(list[1].id, "a");
   EXPECT_EQ(list[2].id, "b");
   const std::regex iso(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)");
@@ -247,6 +249,52 @@ TEST_F(TargetStoreTest, InvalidInputIsRejected) {
   store.Add(Record(std::string(256, 'x')));
   store.Add(with_meta("{}"));
   EXPECT_EQ(store.Count(), 2u);
+}
+
+TEST_F(TargetStoreTest, NewIdsFollowTheGrammarAndFieldsTheirLimits) {
+  TargetStore store = TargetStore::Create(db_);
+  // Ids are URL path segments: ".." could not be deleted from a browser, bidi
+  // controls make lookalikes.
+  for (const char* id : {"..", ".", ".hidden", "-x", "a b", "a/b", "caf\xc3\xa9", "a\xe2\x80\xae" "b", "a?b", "a%2e"})
+    ExpectError([&] { store.Add(Record(id)); }, ErrorCode::kInvalidArgument, "invalid target id");
+  for (const char* id : {"a", "Mona_Lisa-1503.v2", "9"}) store.Add(Record(id));
+  auto with = [](auto set) {
+    TargetRecord r = Record("f");
+    set(r.info);
+    return r;
+  };
+  ExpectError([&] { store.Add(with([](TargetInfo& i) { i.url = "javascript:alert(1)"; })); },
+              ErrorCode::kInvalidArgument, "url must be an absolute http");
+  ExpectError([&] { store.Add(with([](TargetInfo& i) { i.url = "data:text/html,x"; })); }, ErrorCode::kInvalidArgument,
+              "url");
+  ExpectError([&] { store.Add(with([](TargetInfo& i) { i.url = "https://"; })); }, ErrorCode::kInvalidArgument, "url");
+  ExpectError([&] { store.Add(with([](TargetInfo& i) { i.url = "https://a.b/\"x"; })); }, ErrorCode::kInvalidArgument,
+              "url");
+  ExpectError([&] { store.Add(with([](TargetInfo& i) { i.title = std::string(5 << 20, 't'); })); },
+              ErrorCode::kInvalidArgument, "title is 5242880 bytes, at most 1000");
+  ExpectError([&] { store.Add(with([](TargetInfo& i) { i.artist = "a\x1b[2J"; })); }, ErrorCode::kInvalidArgument,
+              "control character");
+  auto deep = [](int levels) {
+    std::string d;
+    for (int k = 0; k < levels; ++k) d += "{\"a\":";
+    return d + "1" + std::string(levels, '}');
+  };
+  ExpectError([&] { store.Add(with([&](TargetInfo& i) { i.meta = deep(17); })); }, ErrorCode::kInvalidArgument,
+              "nested deeper than 16 levels");
+  ExpectError([&] { store.Add(with([&](TargetInfo& i) { i.meta = deep(100000); })); }, ErrorCode::kInvalidArgument,
+              "at most 65536");
+  EXPECT_EQ(store.Count(), 3u);
+  store.Add(with([](TargetInfo& i) { i.url = "HTTPS://example.org/a?b=c#d"; }));
+  // Updates check the fields but not the id grammar: older ids stay editable.
+  TargetInfo upd = store.Get("f", false).info;
+  upd.url = "javascript:alert(1)";
+  ExpectError([&] { store.UpdateInfo(upd); }, ErrorCode::kInvalidArgument, "url");
+  EXPECT_EQ(store.Get("f", false).info.url, "HTTPS://example.org/a?b=c#d");
+  upd.url = "";
+  EXPECT_NO_THROW(ValidateTargetInfo(upd, /*new_id=*/false));
+  upd.id = "..";
+  EXPECT_NO_THROW(ValidateTargetInfo(upd, /*new_id=*/false));
+  EXPECT_THROW(ValidateTargetInfo(upd, /*new_id=*/true), Error);
 }
 
 TEST_F(TargetStoreTest, ReadOnlyStoreReadsAndRefusesWrites) {
