@@ -75,4 +75,18 @@ expect_fail "db list: not a database" "not an mvkp target database" "$MVKP" db l
 expect_fail "db add: missing database" "$T/none.db" "$MVKP" db add "$T/none.db" --id a --image "$SAMPLES/coffee.jpg"
 check "no database created by a failed add" test ! -e "$T/none.db"
 
+# Ids, links and metadata (issue 19): refused before training, with the reason.
+expect_fail "db add: id '..'" "invalid target id" "$MVKP" db add "$DB" --id .. --image "$SAMPLES/coffee.jpg"
+expect_fail "db add: javascript: link" "http" "$MVKP" db add "$DB" --id js --image "$SAMPLES/coffee.jpg" --url 'javascript:alert(1)'
+expect_fail "db add: meta 100 levels deep" "nested deeper" "$MVKP" db add "$DB" --id deep --image "$SAMPLES/coffee.jpg" \
+  --meta "$($PY -c "print('{\"a\":' * 100 + '1' + '}' * 100)")"
+# A row stored deep before the limits: listing and export still work.
+$PY -c "import sqlite3; c = sqlite3.connect('$DB'); c.execute('UPDATE targets SET meta = ? WHERE id = ?', ('{\"a\":' * 300000 + '1' + '}' * 300000, 'starry')); c.commit()"
+expect_ok "db list --json with a 300 000-level meta row" "$MVKP" db list "$DB" --json
+check "db list: that row's meta shows as {}" $PY -c "
+import json, sys
+j = json.loads(open('$T/out').read())
+rows = j if isinstance(j, list) else j.get('targets', j)
+sys.exit(0 if any(r['id'] == 'starry' and r['meta'] == {} for r in rows) else 1)"
+
 cli_finish

@@ -105,4 +105,14 @@ import json, sys
 l = [json.loads(x) for x in open('$T/out').read().strip().splitlines()]
 sys.exit(0 if $RC == 1 and len(l) == 2 and 'error' in l[0] and l[1]['found'][0]['id'] == 'starry' else 1)"
 
+# One damaged row (issue 19): the others are still recognised, with a warning.
+cp "$DB" "$T/damaged.db"
+$PY -c "import sqlite3; c = sqlite3.connect('$T/damaged.db'); c.execute(\"UPDATE targets SET model = x'00' WHERE id = 'coffee'\"); c.commit()"
+expect_ok "recognize with one damaged row" "$MVKP" recognize "$T/damaged.db" "$T/s/view_0000.png" --json
+check "damaged row: skipped with a warning naming it, starry still found" $PY -c "
+import json, sys
+j = json.loads(open('$T/out').read().strip().splitlines()[0])
+err = open('$T/err').read()
+sys.exit(0 if j['found'][0]['id'] == 'starry' and j['targets'] == 2 and 'coffee' in err and 'skipped' in err else 1)"
+
 cli_finish

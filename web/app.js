@@ -22,6 +22,29 @@
 
   debug.hidden = !showDebug;
 
+  // Only http(s) links become links (the server refuses others; rows stored
+  // before it did stay text).
+  function safeUrl(u) {
+    if (!u) return null;
+    try {
+      const url = new URL(u, location.href);
+      return url.protocol === 'http:' || url.protocol === 'https:' ? url.href : null;
+    } catch (e) {
+      return null;
+    }
+  }
+
+  // The server is busy (503) or refusing (429, 5xx): not "nothing found".
+  // The outline stays; the loop waits Retry-After or a growing back-off.
+  class Busy extends Error {
+    constructor(status, retryAfterS) {
+      super('busy ' + status);
+      this.status = status;
+      this.waitMs = Math.max(0, retryAfterS || 0) * 1000;
+    }
+  }
+  let backoffMs = 0;
+
   async function exhibit(id) {
     if (!info.has(id)) {
       const r = await fetch('/api/exhibits/' + encodeURIComponent(id));
@@ -40,8 +63,9 @@
     document.getElementById('card-artist').textContent = e.artist || '';
     document.getElementById('card-year').textContent = e.year || '';
     const link = document.getElementById('card-link');
-    link.hidden = !e.url;
-    if (e.url) link.href = e.url;
+    const href = safeUrl(e.url);
+    link.hidden = !href;
+    if (href) link.href = href; else link.removeAttribute('href');
     card.hidden = false;
   }
 
@@ -76,6 +100,9 @@
     const r = await fetch('/api/recognize' + (prev ? '?prev=' + encodeURIComponent(prev) : ''),
                           { method: 'POST', headers: { 'Content-Type': 'image/jpeg' }, body: blob });
     lastMs = performance.now() - t0;
+    if (r.status === 503 || r.status === 429 || r.status >= 500)
+      throw new Busy(r.status, parseFloat(r.headers.get('Retry-After')));
+    backoffMs = 0;
     const j = r.ok ? await r.json() : { found: [] };
     const found = j.found || [];
     draw(found, grab.width, grab.height);
@@ -95,9 +122,12 @@
     try {
       if (video.readyState >= 2 && video.videoWidth) await recognise(video, video.videoWidth, video.videoHeight);
     } catch (e) {
-      hint.textContent = 'Connection problem, retrying';
+      // Back off: 0.5 s, 1 s, 2 s ... 8 s, or what the server asks.
+      backoffMs = Math.min(8000, backoffMs ? 2 * backoffMs : 500);
+      const busy = e instanceof Busy;
+      hint.textContent = busy ? 'Server busy, retrying' : 'Connection problem, retrying';
       hint.hidden = false;
-      await new Promise((ok) => setTimeout(ok, 1000));
+      await new Promise((ok) => setTimeout(ok, Math.max(backoffMs, busy ? e.waitMs : 0)));
     }
     requestAnimationFrame(loop);   // the next frame once the answer is back
   }

@@ -9,11 +9,13 @@
 #include <sstream>
 
 #include "commands.h"
-#include "db_load.h"
+#include "mvkp/recognize/target_db.h"
+#include "mvkp/serve/encode.h"
 #include "mvkp/core/atomic_file.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
+#include "mvkp/db/target_list.h"
 #include "mvkp/db/target_store.h"
 #include "mvkp/model/model.h"
 #include "mvkp/train/trainer.h"
@@ -35,16 +37,7 @@ TargetRecord MakeRecord(TargetInfo info, const std::string& image_path, const Tr
   return MakeTargetRecord(std::move(info), ReadFileBytes(image_path), LoadImageGray(image_path), train, image_path);
 }
 
-nlohmann::json InfoJson(const TargetInfo& i) {
-  nlohmann::json meta = nlohmann::json::object();
-  try {
-    meta = nlohmann::json::parse(i.meta);
-  } catch (const std::exception&) {
-  }
-  return {{"id", i.id},       {"title", i.title}, {"artist", i.artist},       {"year", i.year},
-          {"url", i.url},     {"meta", meta},     {"width", i.width},         {"height", i.height},
-          {"added_at", i.added_at}};
-}
+using serve::InfoJson;
 
 int RunCreate(DbArgs& a) {
   TargetStore::Create(a.db);
@@ -63,6 +56,7 @@ int RunAdd(DbArgs& a) {
   info.year = a.year;
   info.url = a.url;
   info.meta = a.meta;
+  ValidateTargetInfo(info, /*new_id=*/true, a.db);  // before seconds of training
   Timer t;
   const TargetRecord r = MakeRecord(info, a.image, a.train);
   const double train_ms = t.ElapsedMs();
@@ -72,102 +66,10 @@ int RunAdd(DbArgs& a) {
   return 0;
 }
 
-// LIST.csv (header: id,image[,title,artist,year,url,meta]) or LIST.json (an
-// array of objects with the same keys). Image paths are relative to the list.
-std::vector<std::pair<TargetInfo, std::string>> ReadList(const std::string& path) {
-  std::ifstream in(path);
-  Require(bool(in), ErrorCode::kIo, path + ": cannot open list");
-  const fs::path base = fs::path(path).parent_path();
-  auto resolve = [&](const std::string& p) { return fs::path(p).is_relative() ? (base / p).string() : p; };
-  std::vector<std::pair<TargetInfo, std::string>> out;
-  const std::string ext = fs::path(path).extension().string();
-  if (ext == ".json") {
-    nlohmann::json j;
-    try {
-      in >> j;
-    } catch (const std::exception& e) {
-      throw Error(ErrorCode::kInvalidArgument, path + ": not valid JSON: " + e.what());
-    }
-    Require(j.is_array(), ErrorCode::kInvalidArgument, path + ": expected a JSON array of targets");
-    int n = 0;
-    for (const auto& o : j) {
-      ++n;
-      Require(o.is_object() && o.contains("id") && o.contains("image") && o["id"].is_string() && o["image"].is_string(),
-              ErrorCode::kInvalidArgument, path + ": entry " + std::to_string(n) + " needs string 'id' and 'image'");
-      TargetInfo i;
-      i.id = o["id"];
-      auto str = [&](const char* k) { return o.contains(k) && o[k].is_string() ? o[k].get<std::string>() : std::string(); };
-      i.title = str("title");
-      i.artist = str("artist");
-      i.year = o.contains("year") ? (o["year"].is_string() ? o["year"].get<std::string>() : o["year"].dump()) : "";
-      i.url = str("url");
-      if (o.contains("meta")) i.meta = o["meta"].dump();
-      out.emplace_back(i, resolve(o["image"]));
-    }
-    return out;
-  }
-  Require(ext == ".csv", ErrorCode::kInvalidArgument, path + ": expected a .csv or .json list");
-  // Minimal CSV: comma-separated, fields may be double-quoted ("" for a quote).
-  auto split = [](const std::string& line) {
-    std::vector<std::string> f;
-    std::string cur;
-    bool q = false;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-      const char c = line[i];
-      if (q) {
-        if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-          cur += '"';
-          ++i;
-        } else if (c == '"') {
-          q = false;
-        } else {
-          cur += c;
-        }
-      } else if (c == '"') {
-        q = true;
-      } else if (c == ',') {
-        f.push_back(cur);
-        cur.clear();
-      } else if (c != '\r') {
-        cur += c;
-      }
-    }
-    f.push_back(cur);
-    return f;
-  };
-  std::string line;
-  Require(bool(std::getline(in, line)), ErrorCode::kInvalidArgument, path + ": empty list");
-  const auto header = split(line);
-  std::map<std::string, int> col;
-  for (int i = 0; i < int(header.size()); ++i) col[header[i]] = i;
-  Require(col.count("id") && col.count("image"), ErrorCode::kInvalidArgument,
-          path + ": the header needs 'id' and 'image' columns (optional: title, artist, year, url, meta)");
-  int no = 1;
-  while (std::getline(in, line)) {
-    ++no;
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const auto f = split(line);
-    auto get = [&](const char* k) {
-      auto it = col.find(k);
-      return it != col.end() && it->second < int(f.size()) ? f[it->second] : std::string();
-    };
-    Require(!get("id").empty() && !get("image").empty(), ErrorCode::kInvalidArgument,
-            path + ":" + std::to_string(no) + ": needs an id and an image");
-    TargetInfo i;
-    i.id = get("id");
-    i.title = get("title");
-    i.artist = get("artist");
-    i.year = get("year");
-    i.url = get("url");
-    if (!get("meta").empty()) i.meta = get("meta");
-    out.emplace_back(i, resolve(get("image")));
-  }
-  return out;
-}
-
 int RunImport(DbArgs& a) {
   TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
-  const auto list = ReadList(a.list);
+  // LIST.csv or LIST.json (mvkp/db/target_list.h); image paths relative to the list.
+  const auto list = ReadTargetList(a.list);
   Require(!list.empty(), ErrorCode::kInvalidArgument, a.list + ": no targets");
   std::set<std::string> seen;
   for (const auto& [info, image] : list) {

@@ -9,7 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "commands.h"
-#include "db_load.h"
+#include "mvkp/recognize/target_db.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
@@ -63,10 +63,17 @@ int RunRecognize(RecognizeArgs& a) {
   Require(store.Count() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
   Recognizer rec(a.opt);
   std::map<std::string, std::string> titles;
-  const std::size_t encoded = LoadTargets(store, rec, a.db, [&](const TargetInfo& info, int width, int height) {
-    a.pose.AddTarget(info.id, info.meta, width, height, a.db);
-    titles[info.id] = info.title;
-  });
+  std::vector<SkippedTarget> skipped;
+  const std::size_t encoded = LoadTargets(
+      store, rec, a.db,
+      [&](const TargetInfo& info, int width, int height) {
+        a.pose.AddTarget(info.id, info.meta, width, height, a.db);
+        titles[info.id] = info.title;
+      },
+      &skipped);
+  // A damaged row costs its own target only.
+  for (const auto& s : skipped) std::fprintf(stderr, "warning: skipped a target: %s\n", s.error.c_str());
+  Require(rec.size() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no readable targets");
   rec.ShrinkToFit();
   const std::size_t bytes = rec.memory_bytes();  // also builds the index
   const double load_ms = tl.ElapsedMs();

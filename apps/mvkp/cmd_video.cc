@@ -15,7 +15,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "commands.h"
-#include "db_load.h"
+#include "mvkp/recognize/target_db.h"
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/db/target_store.h"
@@ -56,11 +56,16 @@ int RunVideo(VideoArgs& a) {
   std::map<std::string, std::string> titles;
   Recognizer rec;
   std::map<std::string, cv::Size> sizes;
-  LoadTargets(store, rec, a.db, [&](const TargetInfo& info, int width, int height) {
-    a.pose.AddTarget(info.id, info.meta, width, height, a.db);
-    sizes[info.id] = cv::Size(width, height);
-    titles[info.id] = info.title.empty() ? info.id : info.title;
-  });
+  std::vector<SkippedTarget> skipped;
+  LoadTargets(
+      store, rec, a.db,
+      [&](const TargetInfo& info, int width, int height) {
+        a.pose.AddTarget(info.id, info.meta, width, height, a.db);
+        sizes[info.id] = cv::Size(width, height);
+        titles[info.id] = info.title.empty() ? info.id : info.title;
+      },
+      &skipped);
+  for (const auto& s : skipped) std::fprintf(stderr, "warning: skipped a target: %s\n", s.error.c_str());
   Require(rec.size() > 0, ErrorCode::kInvalidArgument, a.db + ": DB has no targets");
   const double load_ms = load.ElapsedMs();
 

@@ -201,36 +201,4 @@ void Progress(const std::string& what, int done, int total) {
   std::fflush(stderr);
 }
 
-nlohmann::json RecognitionJson(const Recognition& f, const std::string& title) {
-  nlohmann::json h = nlohmann::json::array(), outline = nlohmann::json::array();
-  for (int i = 0; i < 3; ++i) h.push_back({f.homography(i, 0), f.homography(i, 1), f.homography(i, 2)});
-  for (const auto& p : f.outline) outline.push_back({p.x, p.y});
-  return {{"id", f.id},       {"title", title},         {"homography", h}, {"outline", outline},
-          {"inliers", f.inliers}, {"votes", f.votes}, {"score", f.score}};
-}
-
-nlohmann::json QualityJson(const QualityReport& r, bool with_points) {
-  nlohmann::json factors = nlohmann::json::object(), reasons = nlohmann::json::array();
-  for (const auto& f : r.factors)
-    factors[f.name] = {{"value", f.value},   {"factor", f.factor}, {"weight", f.weight},
-                       {"points", f.points}, {"max_points", 100 * f.weight}, {"lost", f.lost}};
-  for (const auto& q : r.reasons) reasons.push_back({{"code", q.code}, {"message", q.message}, {"lost", q.lost}});
-  nlohmann::json j = {{"score", r.score},
-                      {"verdict", r.verdict},
-                      {"expected_detection_rate", r.detection_rate},
-                      {"test_views", r.test_views},
-                      {"median_error_px", r.median_error_px},
-                      {"stable_points", r.eligible_tracks},
-                      {"selected_points", r.selected_tracks},
-                      {"factors", factors},
-                      {"reasons", reasons},
-                      {"time_ms", r.ms}};
-  if (with_points) {
-    nlohmann::json sel = nlohmann::json::array();
-    for (const auto& p : r.selected) sel.push_back({p.x, p.y});
-    j["selected"] = sel;
-  }
-  return j;
-}
-
 }  // namespace mvkp::cli

@@ -11,6 +11,7 @@
 #include "mvkp/match/matcher.h"
 #include "mvkp/quality/quality.h"
 #include "mvkp/recognize/recognizer.h"
+#include "mvkp/serve/encode.h"
 #include "mvkp/train/trainer.h"
 
 namespace mvkp::cli {
@@ -41,13 +42,8 @@ double Median(std::vector<double> v);
 // Progress line on stderr when it is a terminal.
 void Progress(const std::string& what, int done, int total);
 
-// One found target as recognize and serve answer it: id, title, homography,
-// outline, inliers, votes, score.
-nlohmann::json RecognitionJson(const Recognition& f, const std::string& title);
-
-// A target quality report as `mvkp quality --json` and serve give it: score,
-// verdict, expected detection rate, factors (with points), reasons, time_ms;
-// the selected feature positions only when `with_points`.
-nlohmann::json QualityJson(const QualityReport& r, bool with_points);
+// The JSON answers shared with the guide service (mvkp/serve/encode.h).
+using serve::QualityJson;
+using serve::RecognitionJson;
 
 }  // namespace mvkp::cli

@@ -5,6 +5,8 @@
 #include <opencv2/calib3d.hpp>
 
 #include "mvkp/core/error.h"
+#include "mvkp/db/json_limits.h"
+#include "mvkp/serve/encode.h"
 
 namespace mvkp::cli {
 
@@ -32,8 +34,10 @@ void PoseSupport::AddTarget(const std::string& id, const std::string& meta_json,
                             const std::string& db) {
   if (!enabled_) return;
   Target t{object_width, object_height, default_width_m_};
-  // The store validated the JSON object; only width_m is ours to check.
-  const nlohmann::json meta = nlohmann::json::parse(meta_json, nullptr, false);
+  // The store validates the JSON object (rows written before its limits may
+  // be deep or huge: those count as no metadata); only width_m is ours to check.
+  nlohmann::json meta;
+  TryParseJsonLimited(meta_json, meta, MetaJsonLimits());
   if (meta.is_object() && meta.contains("width_m")) {
     const nlohmann::json& w = meta["width_m"];
     Require(w.is_number() && std::isfinite(w.get<double>()) && w.get<double>() > 0, ErrorCode::kInvalidArgument,
@@ -65,15 +69,7 @@ std::optional<Pose> PoseSupport::Estimate(const Recognition& found, cv::Size fra
   return p;
 }
 
-nlohmann::json PoseSupport::Json(const Pose& p) {
-  nlohmann::json R = nlohmann::json::array();
-  for (int i = 0; i < 3; ++i) R.push_back({p.R(i, 0), p.R(i, 1), p.R(i, 2)});
-  return {{"rvec", {p.rvec[0], p.rvec[1], p.rvec[2]}},
-          {"tvec", {p.tvec[0], p.tvec[1], p.tvec[2]}},
-          {"R", R},
-          {"distance_m", p.distance},
-          {"reprojection_px", p.reprojection_px}};
-}
+nlohmann::json PoseSupport::Json(const Pose& p) { return serve::PoseJson(p); }
 
 void PoseSupport::DrawAxes(cv::Mat& bgr, const std::string& id, const Pose& p, cv::Size frame,
                            const std::string& what) {

@@ -14,6 +14,7 @@
 #include "mvkp/db/target_store.h"
 #include "mvkp/model/model.h"
 #include "mvkp/recognize/recognizer.h"
+#include "mvkp/recognize/target_db.h"
 #include "mvkp/train/trainer.h"
 
 namespace mvkp::py_bindings {
@@ -27,11 +28,6 @@ struct PyRecognizer {
   Recognizer rec;
   mutable std::shared_mutex mu;
 };
-
-// The kind under which `mvkp db add` stores Recognizer::Encode bytes
-// (apps/mvkp/db_load.h: kWordsEncoding, which is not in the library).
-constexpr const char* kWordsEncoding = "words";
-TrainOptions DbTrainDefaults() { return RecognitionTrainDefaults(); }
 
 // TargetStore with close(): every use after close() raises ValueError.
 struct PyDatabase {
@@ -263,6 +259,7 @@ void BindRecognize(py::module_& m) {
             if (!meta.is_none())
               info.meta = py::isinstance<py::str>(meta) ? meta.cast<std::string>()
                                                         : py::module_::import("json").attr("dumps")(meta).cast<std::string>();
+            ValidateTargetInfo(info, /*new_id=*/true, d->path);  // before training
             ImageArg img = ToImage(image, "image");
             CheckImage(img.mat, "image");
             std::vector<std::uint8_t> bytes;
@@ -277,15 +274,7 @@ void BindRecognize(py::module_& m) {
               cv::Mat gray = img.mat;
               if (gray.channels() == 3) cv::cvtColor(gray, gray, cv::COLOR_BGR2GRAY);
               if (encode_png) cv::imencode(".png", img.mat, bytes);
-              TrainOptions t = topt;
-              t.progress = nullptr;
-              const Model model = Train(gray, t);
-              info.width = gray.cols;
-              info.height = gray.rows;
-              r.info = info;
-              r.image = std::move(bytes);
-              r.model = SerializeModel(model);
-              r.encodings.push_back({kWordsEncoding, Recognizer(RecognizerOptions::Words()).Encode(model)});
+              r = MakeTargetRecord(info, std::move(bytes), gray, topt, "image");
             }
             d->get().Add(r);  // get() again: close() may have run meanwhile
           },
@@ -303,24 +292,7 @@ void BindRecognize(py::module_& m) {
             const RecognizerOptions o = RecOptions(options, kw, "Database.recognizer");
             TargetStore& store = d.get();
             auto rec = std::make_shared<PyRecognizer>(o);
-            // As the CLI's LoadTargets: the word search takes stored encodings that fit, decodes the rest.
-            std::set<std::string> done;
-            if (o.search == RecognizerSearch::kWords) {
-              for (const auto& [info, data] : store.LoadEncodings(kWordsEncoding)) {
-                try {
-                  rec->rec.AddEncoded(info.id, data.data(), data.size());
-                } catch (const Error& e) {
-                  if (e.code() != ErrorCode::kBadModel) throw;
-                  continue;
-                }
-                done.insert(info.id);
-              }
-            }
-            for (const TargetInfo& info : store.List()) {
-              if (done.count(info.id)) continue;
-              const TargetRecord t = store.Get(info.id, false);
-              rec->rec.Add(info.id, DeserializeModel(t.model.data(), t.model.size(), d.path + ": target '" + info.id + "'"));
-            }
+            LoadTargets(store, rec->rec, d.path, [](const TargetInfo&, int, int) {});
             rec->rec.ShrinkToFit();
             return rec;
           },

@@ -298,6 +298,32 @@ async function main() {
   noErrors(page, 'debug page');
   await page.context().close();
 
+  // 2b. A busy server (503, Retry-After: 1): the client backs off instead of
+  // retrying every frame, says so, and recovers when the server does.
+  page = await newPage(cam);
+  page.allowedErrors = /503/;
+  let busyPosts = 0;
+  await page.route('**/api/recognize*', (route) => {
+    busyPosts++;
+    return route.fulfill({ status: 503, headers: { 'Retry-After': '1', 'Content-Type': 'application/json' },
+                           body: '{"error": "busy"}' });
+  });
+  await page.goto(base + '/');
+  await page.waitForTimeout(3000);
+  const during = busyPosts;
+  check(`503: the client backs off (${during} requests in 3 s, at most 4)`, during >= 1 && during <= 4);
+  check('503: the hint says the server is busy', /busy/i.test(await page.locator('#hint').textContent()),
+        await page.locator('#hint').textContent());
+  await page.unroute('**/api/recognize*');
+  try {
+    await waitTitle(page, TITLE, 30000);
+    check('503: recovers once the server answers', true);
+  } catch (e) {
+    check('503: recovers once the server answers', false, JSON.stringify(await cardState(page)));
+  }
+  noErrors(page, 'busy page');
+  await page.context().close();
+
   // 3. No camera (permission refused): the upload fallback.
   page = await newPage(cam, () => {
     navigator.mediaDevices.getUserMedia = () => Promise.reject(new DOMException('Permission denied', 'NotAllowedError'));

@@ -1,12 +1,11 @@
-#include "db_load.h"
+#include "mvkp/recognize/target_db.h"
 
 #include <set>
 
 #include "mvkp/core/error.h"
 #include "mvkp/model/model.h"
-#include "output.h"
 
-namespace mvkp::cli {
+namespace mvkp {
 
 TrainOptions DbTrainDefaults() { return RecognitionTrainDefaults(); }
 
@@ -14,7 +13,13 @@ TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, 
                               const TrainOptions& train, const std::string& name) {
   TrainOptions t = train;
   t.progress = nullptr;
-  const Model model = TrainNamed(name, gray, t);
+  Model model;
+  try {
+    model = Train(gray, t);
+  } catch (const Error& e) {
+    if (e.code() == ErrorCode::kNoTexture) throw Error(e.code(), name + ": " + e.what());
+    throw;
+  }
   TargetRecord r;
   info.width = gray.cols;
   info.height = gray.rows;
@@ -26,7 +31,8 @@ TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, 
 }
 
 std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::string& db,
-                        const std::function<void(const TargetInfo&, int, int)>& each) {
+                        const std::function<void(const TargetInfo&, int, int)>& each,
+                        std::vector<SkippedTarget>* skipped) {
   std::set<std::string> done;
   if (rec.options().search == RecognizerSearch::kWords) {
     for (const auto& [info, data] : store.LoadEncodings(kWordsEncoding)) {
@@ -43,12 +49,19 @@ std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::st
   const std::size_t from_encodings = done.size();
   for (const TargetInfo& info : store.List()) {
     if (done.count(info.id)) continue;
-    const TargetRecord t = store.Get(info.id, /*with_image=*/false);
-    const Model model = DeserializeModel(t.model.data(), t.model.size(), db + ": target '" + info.id + "'");
-    rec.Add(info.id, model);
-    each(info, model.object_width, model.object_height);
+    Model model;
+    try {
+      const TargetRecord t = store.Get(info.id, /*with_image=*/false);
+      model = DeserializeModel(t.model.data(), t.model.size(), db + ": target '" + info.id + "'");
+      rec.Add(info.id, model);
+    } catch (const Error& e) {
+      if (!skipped || e.code() == ErrorCode::kIo) throw;
+      skipped->push_back({info.id, e.what()});
+      continue;
+    }
+    each(info, model.object_width, model.object_height);  // its errors are the caller's
   }
   return from_encodings;
 }
 
-}  // namespace mvkp::cli
+}  // namespace mvkp

@@ -1,10 +1,11 @@
-// Target database helpers of the CLI: making records (db add / import, the
-// server's admin add) and loading a database into a recogniser (recognize,
-// video, serve).
+// A target database (mvkp/db) as a recogniser sees it: making records (`mvkp
+// db add / import`, the guide service's admin API) and loading a database into
+// a Recognizer (`mvkp recognize`, `mvkp video`, the guide service).
 #pragma once
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -12,9 +13,9 @@
 #include "mvkp/recognize/recognizer.h"
 #include "mvkp/train/trainer.h"
 
-namespace mvkp::cli {
+namespace mvkp {
 
-// The kind under which `db add` / `db import` store Recognizer::Encode bytes.
+// The kind under which records store Recognizer::Encode bytes.
 constexpr const char* kWordsEncoding = "words";
 
 // Recognition targets are trained smaller and over a wider scale range than
@@ -25,10 +26,16 @@ constexpr const char* kWordsEncoding = "words";
 TrainOptions DbTrainDefaults();
 
 // Trains a target from its image (`gray`, decoded from `image`) and packs it
-// with its model and its word encoding (so `recognize --search words` need
-// not decode thousands of models). `name` names the image in errors.
+// with its model and its word encoding (so the word search need not decode
+// thousands of models). `name` names the image in errors.
 TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, const cv::Mat& gray,
                               const TrainOptions& train, const std::string& name);
+
+// A target LoadTargets left out, and why.
+struct SkippedTarget {
+  std::string id;
+  std::string error;
+};
 
 // Adds every target of `store` to `rec` and calls `each(info, width, height)`
 // (the target's size in its model's pixels) for it. The word search takes the
@@ -36,7 +43,12 @@ TargetRecord MakeTargetRecord(TargetInfo info, std::vector<std::uint8_t> image, 
 // other targets' models (older databases, other settings); the exact search
 // decodes every model. Returns the number of targets that came from
 // encodings. Errors name `db` and the target.
+//
+// A target whose model cannot be read (damaged row): with `skipped` it is left
+// out and listed there, so one bad row does not take the others down; without
+// it, the Error is thrown.
 std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::string& db,
-                        const std::function<void(const TargetInfo&, int, int)>& each);
+                        const std::function<void(const TargetInfo&, int, int)>& each,
+                        std::vector<SkippedTarget>* skipped = nullptr);
 
-}  // namespace mvkp::cli
+}  // namespace mvkp

@@ -1,4 +1,4 @@
-#include "conn_deadline.h"
+#include "mvkp/serve/internal/conn_deadline.h"
 
 #include <arpa/inet.h>
 #include <dirent.h>
@@ -8,11 +8,13 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <algorithm>
+#include <chrono>
 #include <map>
 #include <string>
 #include <tuple>
 
-namespace mvkp::cli {
+namespace mvkp::serve {
 namespace {
 
 // The peer of `fd` if it is a TCP socket connected on local port `port`.
@@ -35,21 +37,48 @@ std::string Key(int fd, const sockaddr_storage& peer) {
   return k;
 }
 
+std::string PeerName(const sockaddr_storage& peer) {
+  char buf[INET6_ADDRSTRLEN] = {0};
+  int port = 0;
+  if (peer.ss_family == AF_INET) {
+    const auto* a = reinterpret_cast<const sockaddr_in*>(&peer);
+    ::inet_ntop(AF_INET, &a->sin_addr, buf, sizeof buf);
+    port = ntohs(a->sin_port);
+  } else if (peer.ss_family == AF_INET6) {
+    const auto* a = reinterpret_cast<const sockaddr_in6*>(&peer);
+    ::inet_ntop(AF_INET6, &a->sin6_addr, buf, sizeof buf);
+    port = ntohs(a->sin6_port);
+  }
+  return std::string(buf) + "|" + std::to_string(port);
+}
+
 }  // namespace
 
-ConnectionDeadline::ConnectionDeadline(int port, std::chrono::milliseconds limit, std::chrono::milliseconds period,
-                                       std::chrono::milliseconds grace, std::atomic<std::uint64_t>* cut)
-    : port_(port), limit_(limit), period_(period), grace_(grace), cut_(cut), thread_([this] { Run(); }) {}
+ConnectionDeadline::ConnectionDeadline(int port, Ms limit, Ms read_limit, Ms period, Ms grace,
+                                       std::atomic<std::uint64_t>* cut)
+    : port_(port), limit_(limit), read_limit_(read_limit), period_(period), grace_(grace), cut_(cut),
+      thread_([this] { Run(); }) {}
 
 ConnectionDeadline::~ConnectionDeadline() {
   stop_ = true;
   thread_.join();
 }
 
+void ConnectionDeadline::Busy(const std::string& address, int port) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  activity_[address + "|" + std::to_string(port)] = {true, std::chrono::steady_clock::now()};
+}
+
+void ConnectionDeadline::Idle(const std::string& address, int port) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  activity_[address + "|" + std::to_string(port)] = {false, std::chrono::steady_clock::now()};
+}
+
 void ConnectionDeadline::Run() {
   using Clock = std::chrono::steady_clock;
   struct Seen {
     Clock::time_point first;
+    Clock::time_point cut_at{};
     int stage = 0;  // 1: reading side shut, 2: both
   };
   std::map<std::string, Seen> seen;
@@ -57,7 +86,9 @@ void ConnectionDeadline::Run() {
     std::this_thread::sleep_for(period_);
     const auto now = Clock::now();
     std::map<std::string, Seen> next;
+    std::map<std::string, Activity> live;  // activity of the peers still connected
     if (DIR* d = ::opendir("/proc/self/fd")) {
+      std::lock_guard<std::mutex> lock(mutex_);
       while (dirent* e = ::readdir(d)) {
         char* end = nullptr;
         const long fd = std::strtol(e->d_name, &end, 10);
@@ -67,23 +98,40 @@ void ConnectionDeadline::Run() {
         sockaddr_storage peer{};
         if (!PeerOn(int(fd), port_, peer)) continue;
         const std::string k = Key(int(fd), peer);
+        const std::string name = PeerName(peer);
         auto it = seen.find(k);
-        Seen s = it == seen.end() ? Seen{now, 0} : it->second;
-        const auto age = now - s.first;
-        if (s.stage == 0 && age > limit_) {
+        Seen s = it == seen.end() ? Seen{now} : it->second;
+        // The read clock: since the connection was seen or last answered.
+        // The read clock: since the connection was seen or last answered;
+        // stopped while a handler works on its request.
+        bool reading_too_long = now - s.first > read_limit_;
+        const auto a = activity_.find(name);
+        if (a != activity_.end()) {
+          live[name] = a->second;
+          reading_too_long = !a->second.busy && now - std::max(a->second.since, s.first) > read_limit_;
+        }
+        if (s.stage == 0 && (now - s.first > limit_ || reading_too_long)) {
           ::shutdown(int(fd), SHUT_RD);
           s.stage = 1;
+          s.cut_at = now;
           if (cut_) ++*cut_;
-        } else if (s.stage == 1 && age > limit_ + grace_) {
+        } else if (s.stage == 1 && now - s.cut_at > grace_) {
           ::shutdown(int(fd), SHUT_RDWR);
           s.stage = 2;
         }
         next.emplace(k, s);
       }
       ::closedir(d);
+      // Peers no longer connected are forgotten (their ports get reused).
+      for (auto it = activity_.begin(); it != activity_.end();) {
+        if (!live.count(it->first) && now - it->second.since > 2 * period_ + std::chrono::seconds(1))
+          it = activity_.erase(it);
+        else
+          ++it;
+      }
     }
     seen = std::move(next);
   }
 }
 
-}  // namespace mvkp::cli
+}  // namespace mvkp::serve

@@ -1,4 +1,4 @@
-#include "web_assets.h"
+#include "mvkp/serve/web_assets.h"
 
 #include <array>
 
@@ -22,7 +22,7 @@ MVKP_INCBIN(mvkp_web_admin, MVKP_WEB_DIR "/admin.html");
 MVKP_INCBIN(mvkp_web_admin_js, MVKP_WEB_DIR "/admin.js");
 MVKP_INCBIN(mvkp_web_admin_css, MVKP_WEB_DIR "/admin.css");
 
-namespace mvkp::cli {
+namespace mvkp::serve {
 namespace {
 
 std::string_view View(const char* b, const char* e) { return {b, std::size_t(e - b)}; }
@@ -45,4 +45,4 @@ const WebAsset* FindWebAsset(std::string_view path) {
   return nullptr;
 }
 
-}  // namespace mvkp::cli
+}  // namespace mvkp::serve

@@ -1,10 +1,10 @@
-// The museum guide's web client (web/), built into the binary so `mvkp serve`
+// The museum guide's web client (web/), built into the binary so the guide service
 // needs no files at run time.
 #pragma once
 
 #include <string_view>
 
-namespace mvkp::cli {
+namespace mvkp::serve {
 
 struct WebAsset {
   std::string_view path;          // URL path, e.g. "/app.js"
@@ -15,4 +15,4 @@ struct WebAsset {
 // The asset served at `path` ("/" is index.html, "/admin" admin.html), or nullptr.
 const WebAsset* FindWebAsset(std::string_view path);
 
-}  // namespace mvkp::cli
+}  // namespace mvkp::serve

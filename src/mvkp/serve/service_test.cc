@@ -1,0 +1,456 @@
+// The guide service against hostile and broken input (issue 19): each test
+// reproduces one finding on a service running in this process on a free
+// loopback port, and checks that it is refused cleanly while /healthz keeps
+// answering.
+#include "mvkp/serve/service.h"
+
+#include <arpa/inet.h>
+#include <httplib.h>
+#include <netinet/in.h>
+#include <sqlite3.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+#include "mvkp/db/target_store.h"
+#include "mvkp/recognize/target_db.h"
+#include "test_samples.h"
+
+namespace mvkp::serve {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+constexpr const char* kToken = "0123456789abcdef-token";
+
+std::vector<std::uint8_t> FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+std::string SamplePath(const std::string& name) { return std::string(MVKP_SOURCE_DIR) + "/samples/" + name; }
+
+void Sql(const std::string& db, const std::string& sql, const std::string& blob_or_text = "", bool blob = false) {
+  sqlite3* h = nullptr;
+  ASSERT_EQ(sqlite3_open(db.c_str(), &h), SQLITE_OK);
+  sqlite3_busy_timeout(h, 5000);
+  sqlite3_stmt* st = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(h, sql.c_str(), -1, &st, nullptr), SQLITE_OK) << sqlite3_errmsg(h);
+  if (sql.find('?') != std::string::npos) {
+    if (blob) sqlite3_bind_blob(st, 1, blob_or_text.data(), int(blob_or_text.size()), SQLITE_TRANSIENT);
+    else sqlite3_bind_text(st, 1, blob_or_text.data(), int(blob_or_text.size()), SQLITE_TRANSIENT);
+  }
+  const int rc = sqlite3_step(st);
+  EXPECT_TRUE(rc == SQLITE_DONE || rc == SQLITE_ROW) << sqlite3_errmsg(h);
+  sqlite3_finalize(st);
+  sqlite3_close(h);
+}
+
+// A service on a copy of the suite's database, stopped and joined at the end.
+class Running {
+ public:
+  explicit Running(ServiceOptions o) {
+    o.port = 0;
+    if (!o.log) o.log = [](const std::string&) {};
+    service_ = std::make_unique<Service>(o);
+    port_ = service_->Bind();
+    thread_ = std::thread([this] { service_->Run(); });
+    httplib::Client c = Client();
+    for (int i = 0; i < 200; ++i) {
+      if (auto r = c.Get("/healthz"); r && r->status == 200) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    ADD_FAILURE() << "service did not answer";
+  }
+  ~Running() {
+    service_->Stop();
+    thread_.join();
+  }
+  int port() const { return port_; }
+  httplib::Client Client(int timeout_s = 10) const {
+    httplib::Client c("127.0.0.1", port_);
+    c.set_connection_timeout(timeout_s, 0);
+    c.set_read_timeout(timeout_s, 0);
+    c.set_write_timeout(timeout_s, 0);
+    return c;
+  }
+  Json Health() const {
+    auto r = Client(2).Get("/healthz");
+    EXPECT_TRUE(r && r->status == 200) << "healthz did not answer within 2 s: " << httplib::to_string(r.error());
+    return r ? Json::parse(r->body) : Json();
+  }
+  double Metric(const std::string& name) const {
+    auto r = Client().Get("/metrics");
+    if (!r) return -1;
+    std::istringstream in(r->body);
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind(name + " ", 0) == 0) return std::stod(line.substr(name.size() + 1));
+    return -1;
+  }
+
+ private:
+  std::unique_ptr<Service> service_;
+  std::thread thread_;
+  int port_ = 0;
+};
+
+// A raw loopback socket, for requests httplib's client would not send.
+int Connect(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in sa{};
+  sa.sin_family = AF_INET;
+  sa.sin_port = htons(std::uint16_t(port));
+  sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa), 0);
+  timeval tv{5, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  return fd;
+}
+
+std::string ReadSome(int fd) {
+  char buf[4096];
+  const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+  return n > 0 ? std::string(buf, std::size_t(n)) : std::string();
+}
+
+class ServiceTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string((fs::temp_directory_path() / ("mvkp_serve_test_" + std::to_string(::getpid()))).string());
+    fs::create_directories(*dir_);
+    const std::string db = *dir_ + "/base.db";
+    TargetStore store = TargetStore::Create(db);
+    for (const char* id : {"starry", "coffee"}) {
+      const std::string path = SamplePath(std::string(id == std::string("starry") ? "starry_night" : id) + ".jpg");
+      TargetInfo info;
+      info.id = id;
+      info.title = id;
+      store.Add(MakeTargetRecord(info, FileBytes(path), testing::Sample(fs::path(path).filename()), DbTrainDefaults(),
+                                 path));
+    }
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+  // A fresh copy of the two-exhibit database.
+  std::string CopyDb(const std::string& name) {
+    const std::string db = *dir_ + "/" + name + ".db";
+    fs::remove(db);
+    fs::copy_file(*dir_ + "/base.db", db);
+    return db;
+  }
+  ServiceOptions Options(const std::string& db) {
+    ServiceOptions o;
+    o.db = db;
+    o.admin_token = kToken;
+    o.watch_s = 0.1;
+    return o;
+  }
+  static httplib::Headers Admin() { return {{"Authorization", std::string("Bearer ") + kToken}}; }
+  static std::string StarryJpeg() {
+    std::vector<std::uint8_t> b;
+    cv::imencode(".jpg", testing::Sample("starry_night.jpg"), b);
+    return {b.begin(), b.end()};
+  }
+  static std::string Deep(int levels) {
+    std::string s;
+    for (int i = 0; i < levels; ++i) s += "{\"a\":";
+    return s + "1" + std::string(std::size_t(levels), '}');
+  }
+  // No answer may name the database file or carry internal detail.
+  void ExpectClean(const httplib::Result& r, const std::string& db) {
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->body.find(db), std::string::npos) << r->body;
+    EXPECT_EQ(r->body.find(".db"), std::string::npos) << r->body;
+  }
+  static std::string* dir_;
+};
+std::string* ServiceTest::dir_ = nullptr;
+
+TEST_F(ServiceTest, RecognisesAndListsAsBefore) {
+  Running s(Options(CopyDb("plain")));
+  auto c = s.Client();
+  auto r = c.Post("/api/recognize", StarryJpeg(), "image/jpeg");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  const Json j = Json::parse(r->body);
+  ASSERT_FALSE(j["found"].empty());
+  EXPECT_EQ(j["found"][0]["id"], "starry");
+  r = c.Get("/api/exhibits");
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_EQ(Json::parse(r->body)["exhibits"].size(), 2u);
+  EXPECT_EQ(s.Health()["status"], "ok");
+}
+
+// Finding 1: deeply nested JSON crashed the server, and kept crashing it.
+TEST_F(ServiceTest, DeepJsonIsRefusedAndDeepStoredMetaDoesNotCrash) {
+  const std::string db = CopyDb("deep");
+  // A row written before the limits existed (100 000 levels, as in the report).
+  Sql(db, "UPDATE targets SET meta = ? WHERE id = 'coffee'", Deep(100000));
+  Running s(Options(db));
+  auto c = s.Client();
+  auto r = c.Get("/api/exhibits");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200);
+  for (const auto& e : Json::parse(r->body)["exhibits"]) EXPECT_TRUE(e["meta"].is_object());
+  r = c.Get("/api/exhibits/coffee");
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_EQ(Json::parse(r->body)["meta"], Json::object());
+  // A PUT of the same depth, and one just over the limit.
+  r = c.Put("/api/exhibits/starry", Admin(), "{\"meta\": " + Deep(100000) + "}", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  r = c.Put("/api/exhibits/starry", Admin(), "{\"meta\": " + Deep(20) + "}", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  EXPECT_NE(r->body.find("nested deeper"), std::string::npos) << r->body;
+  ExpectClean(r, db);
+  // An add with deep meta is refused before any training.
+  httplib::MultipartFormDataItems add = {{"image", StarryJpeg(), "s.jpg", "image/jpeg"},
+                                         {"id", "deep", "", ""},
+                                         {"meta", Deep(1000), "", ""}};
+  r = c.Post("/api/exhibits", Admin(), add);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  EXPECT_EQ(s.Metric("mvkp_trainings_total"), 0);
+  EXPECT_EQ(s.Health()["status"], "ok");
+  EXPECT_TRUE(TargetStore::Open(db).Get("starry", false).info.meta == "{}");
+}
+
+// Finding 3: a second server silently shared the port.
+TEST_F(ServiceTest, APortInUseIsAnError) {
+  const std::string db = CopyDb("port");
+  Running s(Options(db));
+  ServiceOptions o = Options(db);
+  o.port = s.port();
+  o.log = [](const std::string&) {};
+  Service second(o);
+  try {
+    second.Bind();
+    FAIL() << "a second service bound port " << s.port();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kIo);
+    EXPECT_NE(std::string(e.what()).find("in use"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(s.Health()["status"], "ok");
+}
+
+// Finding 4: one corrupt row stopped the service from starting; a failing
+// reload went unseen.
+TEST_F(ServiceTest, ADamagedExhibitIsSkippedAndFailingReloadsAreReported) {
+  const std::string db = CopyDb("corrupt");
+  Sql(db, "UPDATE targets SET model = ? WHERE id = 'coffee'", std::string(1, '\0'), /*blob=*/true);
+  Running s(Options(db));
+  Json h = s.Health();
+  EXPECT_EQ(h["status"], "degraded");
+  ASSERT_EQ(h["skipped"].size(), 1u);
+  EXPECT_EQ(h["skipped"][0]["id"], "coffee");
+  EXPECT_EQ(h["exhibits"], 1);
+  EXPECT_EQ(s.Metric("mvkp_exhibits_skipped"), 1);
+  auto r = s.Client().Post("/api/recognize", StarryJpeg(), "image/jpeg");
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_EQ(Json::parse(r->body)["found"][0]["id"], "starry");
+
+  // A database this build cannot read any more: the reload fails, the
+  // service keeps serving what it has and says so.
+  Sql(db, "PRAGMA user_version = 99");
+  bool seen = false;
+  for (int i = 0; i < 100 && !seen; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    h = s.Health();
+    seen = h.contains("reload") && h["reload"]["ok"] == false;
+  }
+  ASSERT_TRUE(seen) << h.dump();
+  EXPECT_EQ(h["status"], "degraded");
+  EXPECT_NE(h["reload"]["error"].get<std::string>().find("newer"), std::string::npos) << h.dump();
+  EXPECT_EQ(s.Metric("mvkp_reload_failing"), 1);
+  r = s.Client().Post("/api/recognize", StarryJpeg(), "image/jpeg");
+  ASSERT_TRUE(r && r->status == 200);
+  // Repaired: the next poll reloads and the report clears.
+  Sql(db, "PRAGMA user_version = " + std::to_string(kTargetStoreSchemaVersion));
+  Sql(db, "UPDATE targets SET title = 'Coffee' WHERE id = 'coffee'");
+  for (int i = 0; i < 100 && h.contains("reload"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    h = s.Health();
+  }
+  EXPECT_FALSE(h.contains("reload")) << h.dump();
+  EXPECT_EQ(s.Metric("mvkp_reload_failing"), 0);
+}
+
+// Finding 5: stored images above the pixel limit made quality answer 500.
+TEST_F(ServiceTest, QualityOfAStoredImageAboveThePixelLimitIsAssessedReduced) {
+  ServiceOptions o = Options(CopyDb("pixels"));
+  o.max_pixels = 50'000;  // starry_night.jpg is 400x319
+  Running s(o);
+  auto r = s.Client(60).Get("/api/exhibits/starry/quality", Admin());
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_TRUE(Json::parse(r->body)["score"].is_number());
+  r = s.Client().Get("/api/exhibits/starry/image?thumb=100");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200);
+}
+
+// Findings 6 and 7, and 9's "refused only after 2 s of training".
+TEST_F(ServiceTest, IdsAndLinksFollowTheRulesBeforeAnyTraining) {
+  const std::string db = CopyDb("ids");
+  Running s(Options(db));
+  auto c = s.Client();
+  for (const std::string id : {"..", ".", "a b", "bidi\xe2\x80\xaemoc", "caf\xc3\xa9"}) {
+    httplib::MultipartFormDataItems add = {{"image", StarryJpeg(), "s.jpg", "image/jpeg"}, {"id", id, "", ""}};
+    auto r = c.Post("/api/exhibits", Admin(), add);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 400) << id << ": " << r->body;
+    ExpectClean(r, db);
+  }
+  httplib::MultipartFormDataItems js = {{"image", StarryJpeg(), "s.jpg", "image/jpeg"},
+                                        {"id", "js", "", ""},
+                                        {"url", "javascript:alert(1)", "", ""}};
+  auto r = c.Post("/api/exhibits", Admin(), js);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  EXPECT_NE(r->body.find("http"), std::string::npos) << r->body;
+  r = c.Put("/api/exhibits/starry", Admin(), R"J({"url": "javascript:alert(1)"})J", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(s.Metric("mvkp_trainings_total"), 0);
+  r = c.Put("/api/exhibits/starry", Admin(), R"({"url": "https://example.org/starry"})", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(TargetStore::Open(db).Get("starry", false).info.url, "https://example.org/starry");
+}
+
+// Finding 9: PUT accepted unknown fields, a 5 MB title, and ignored id.
+TEST_F(ServiceTest, PutTakesOnlyKnownFieldsOfBoundedSize) {
+  const std::string db = CopyDb("put");
+  Running s(Options(db));
+  auto c = s.Client();
+  auto r = c.Put("/api/exhibits/starry", Admin(), R"({"titel": "typo"})", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  EXPECT_NE(r->body.find("unknown field 'titel'"), std::string::npos) << r->body;
+  r = c.Put("/api/exhibits/starry", Admin(), Json{{"title", std::string(5 << 20, 't')}}.dump(), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  r = c.Put("/api/exhibits/starry", Admin(), Json{{"title", std::string(2000, 't')}}.dump(), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  EXPECT_NE(r->body.find("at most 1000"), std::string::npos) << r->body;
+  ExpectClean(r, db);
+  r = c.Put("/api/exhibits/starry", Admin(), R"({"id": "other", "title": "x"})", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  r = c.Put("/api/exhibits/starry", Admin(), R"({"id": "starry", "title": "The Starry Night"})", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(TargetStore::Open(db).Get("starry", false).info.title, "The Starry Night");
+}
+
+// Finding 9: no limit on token guesses.
+TEST_F(ServiceTest, WrongTokensAreSlowedDown) {
+  ServiceOptions o = Options(CopyDb("tokens"));
+  o.token_failures_before_delay = 3;
+  Running s(o);
+  auto c = s.Client();
+  const httplib::Headers wrong = {{"Authorization", "Bearer wrong-wrong-wrong-wrong"}};
+  for (int i = 0; i < 3; ++i) {
+    auto r = c.Get("/api/admin/check", wrong);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 401);
+  }
+  auto r = c.Get("/api/admin/check", wrong);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 429);
+  EXPECT_FALSE(r->get_header_value("Retry-After").empty());
+  // While blocked, even the right token waits: guesses cannot be tested.
+  r = c.Get("/api/admin/check", Admin());
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 429);
+  EXPECT_GE(s.Metric("mvkp_admin_token_failures_total"), 3);
+  EXPECT_EQ(s.Health()["status"], "ok");
+}
+
+// Finding 10: 404 for a wrong method, a 10 s wait for a body without length.
+TEST_F(ServiceTest, WrongMethodsGet405AndBodiesWithoutLengthGet411) {
+  Running s(Options(CopyDb("methods")));
+  auto c = s.Client();
+  auto r = c.Get("/api/recognize");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 405);
+  EXPECT_EQ(r->get_header_value("Allow"), "POST");
+  r = c.Delete("/api/exhibits");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 405);
+  EXPECT_EQ(r->get_header_value("Allow"), "GET, HEAD, POST");
+  r = c.Post("/api/exhibits/starry", "{}", "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 405);
+  r = c.Get("/api/nothing");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 404);
+  // No Content-Length: the answer comes at once (the socket waits at most 5 s).
+  const int fd = Connect(s.port());
+  const std::string req = "POST /api/recognize HTTP/1.1\r\nHost: x\r\nContent-Type: image/jpeg\r\n\r\n";
+  ASSERT_EQ(::send(fd, req.data(), req.size(), 0), ssize_t(req.size()));
+  const std::string answer = ReadSome(fd);
+  ::close(fd);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 411", 0), 0u) << answer;
+}
+
+// Finding 8: every thumbnail decoded the full original.
+TEST_F(ServiceTest, ThumbnailsAreCached) {
+  Running s(Options(CopyDb("thumbs")));
+  auto c = s.Client();
+  auto a = c.Get("/api/exhibits/starry/image?thumb=96");
+  auto b = c.Get("/api/exhibits/starry/image?thumb=96");
+  ASSERT_TRUE(a && b);
+  ASSERT_EQ(a->status, 200);
+  ASSERT_EQ(b->status, 200);
+  EXPECT_EQ(a->body, b->body);
+  EXPECT_EQ(s.Metric("mvkp_thumb_cache_misses_total"), 1);
+  EXPECT_EQ(s.Metric("mvkp_thumb_cache_hits_total"), 1);
+  const cv::Mat t = cv::imdecode(std::vector<std::uint8_t>(a->body.begin(), a->body.end()), cv::IMREAD_COLOR);
+  EXPECT_EQ(std::max(t.cols, t.rows), 96);
+}
+
+// Finding 2: two slow sockets froze the whole server.
+TEST_F(ServiceTest, SlowClientsNeitherStarveOthersNorStayLong) {
+  ServiceOptions o = Options(CopyDb("slow"));
+  o.io_threads = 16;  // twice the slow sockets below (the default is 32)
+  o.read_deadline_s = 1;
+  Running s(o);
+  std::vector<int> slow;
+  for (int i = 0; i < 8; ++i) {
+    slow.push_back(Connect(s.port()));
+    const std::string part = i % 2 ? "GET /healthz HTTP/1.1\r\nHost: x\r\n" : "POST /api/recognize HTTP/1.1\r\nContent-Length: 100000\r\n\r\nab";
+    ::send(slow.back(), part.data(), part.size(), 0);
+  }
+  // Others are served meanwhile (each call waits at most 2 s).
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(s.Health()["status"], "ok");
+  auto r = s.Client(2).Post("/api/recognize", StarryJpeg(), "image/jpeg");
+  ASSERT_TRUE(r) << "recognition did not answer within 2 s with 8 slow sockets open";
+  EXPECT_EQ(r->status, 200);
+  // Within the read deadline (1 s) and the watchdog's period, they are cut.
+  double cut = 0;
+  for (int i = 0; i < 40 && cut < 8; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    cut = s.Metric("mvkp_connections_cut_total");
+  }
+  EXPECT_GE(cut, 8);
+  for (int fd : slow) ::close(fd);
+}
+
+}  // namespace
+}  // namespace mvkp::serve
