@@ -37,6 +37,8 @@ std::string Key(int fd, const sockaddr_storage& peer) {
   return k;
 }
 
+constexpr std::chrono::seconds kBusyExtra(120);
+
 std::string PeerName(const sockaddr_storage& peer) {
   char buf[INET6_ADDRSTRLEN] = {0};
   int port = 0;
@@ -105,12 +107,18 @@ void ConnectionDeadline::Run() {
         // The read clock: since the connection was seen or last answered;
         // stopped while a handler works on its request.
         bool reading_too_long = now - s.first > read_limit_;
+        bool busy = false;
         const auto a = activity_.find(name);
         if (a != activity_.end()) {
           live[name] = a->second;
-          reading_too_long = !a->second.busy && now - std::max(a->second.since, s.first) > read_limit_;
+          busy = a->second.busy;
+          reading_too_long = !busy && now - std::max(a->second.since, s.first) > read_limit_;
         }
-        if (s.stage == 0 && (now - s.first > limit_ || reading_too_long)) {
+        // While the server works on a request (an admin add waits seconds
+        // for the writer lock) the total limit gets kBusyExtra more: cutting
+        // then would lose an answer to a change already made.
+        const auto total = busy ? limit_ + kBusyExtra : limit_;
+        if (s.stage == 0 && (now - s.first > total || reading_too_long)) {
           ::shutdown(int(fd), SHUT_RD);
           s.stage = 1;
           s.cut_at = now;

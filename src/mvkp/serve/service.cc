@@ -649,8 +649,10 @@ struct Service::Impl {
       Json line = {{"method", req.method},         {"path", req.path},          {"route", route},
                    {"status", res.status},         {"bytes_in", req.body.size()}, {"bytes_out", res.body.size()},
                    {"remote", req.remote_addr}};
-      line["ms"] = ms;
-      metrics.Observe(route, res.status, ms / 1000.0);
+      // A request that never got past its first line was not timed.
+      const bool timed = !req.method.empty();
+      line["ms"] = timed ? Json(ms) : Json(nullptr);
+      metrics.Observe(route, res.status, timed ? ms / 1000.0 : 0.0);
       Log(line);
     });
     srv.set_exception_handler([this](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {

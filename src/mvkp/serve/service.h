@@ -53,7 +53,7 @@ struct ServiceOptions {
   bool reuse_port = false;            // SO_REUSEPORT: share the port with other processes, on purpose only
   int backlog = 128;                  // listen queue
   int threads = 2;                    // CPU work at once (recognition, thumbnails, quality, training)
-  int io_threads = 32;                // connection workers
+  int io_threads = 64;                // connection workers (keep-alive clients hold one each)
   int max_inflight = 0;               // recognitions admitted at once (0: 8 x threads); more get 503
   std::size_t max_body_mb = 10;       // largest request body
   std::int64_t max_pixels = 12'000'000;  // largest request image; larger stored images are decoded reduced

@@ -11,7 +11,9 @@
 //    within this time of being accepted or of its previous answer. Handlers
 //    mark the time they run (Busy) and answer (Idle), by peer address, so
 //    slow work (training) is not counted, only the client's own slowness.
-//  - `limit`: the total life of a connection, whatever it does.
+//  - `limit`: the total life of a connection (2 minutes more while a
+//    handler works on its request, so an answer to a change already made is
+//    not lost).
 // A connection over a limit has its reading side shut down: the worker reads
 // end-of-file, a request in progress is answered 400 and the connection
 // closed. One still open `grace` later is shut down both ways (a client that
