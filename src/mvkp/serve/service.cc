@@ -385,7 +385,7 @@ struct Service::Impl {
   int listen_fd = -1;
   int port = -1;
   std::atomic<bool> stopping{false};
-  std::atomic<bool> running{false}, listen_done{false};
+  std::atomic<bool> running{false}, listen_done{false}, in_run{false};
   std::atomic<ConnectionDeadline*> deadline{nullptr};  // while Run serves
 
   mutable std::shared_mutex mutex;  // recognitions share it; a reload takes it alone
@@ -1094,7 +1094,10 @@ Service::Service(ServiceOptions options) {
 }
 
 Service::~Service() {
+  // Run may still be serving in another thread: stop it and wait, so no
+  // handler outlives the state it uses.
   Stop();
+  while (impl_->in_run) std::this_thread::sleep_for(std::chrono::milliseconds(10));
 }
 
 int Service::Bind() {
@@ -1118,6 +1121,11 @@ void Service::Stop() { impl_->stopping = true; }
 
 void Service::Run() {
   Impl& m = *impl_;
+  m.in_run = true;
+  struct Leave {
+    std::atomic<bool>& f;
+    ~Leave() { f = false; }
+  } leave{m.in_run};
   Bind();
   // Stop() only raises a flag (it may come from a signal handler's thread);
   // this thread stops the server, again until listening has ended (a stop

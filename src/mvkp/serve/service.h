@@ -78,7 +78,7 @@ class Service {
   // Opens the database and loads its exhibits (a damaged one is skipped and
   // reported). Throws Error for bad options or a database that cannot be read.
   explicit Service(ServiceOptions options);
-  ~Service();
+  ~Service();  // stops Run (in any thread) and waits for it to return
   Service(const Service&) = delete;
   Service& operator=(const Service&) = delete;
 
