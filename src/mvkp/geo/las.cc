@@ -66,20 +66,38 @@ struct LasHeader {
   std::string crs_wkt;
 };
 
-// Reads exactly n bytes at pos or throws "truncated".
-void ReadAt(std::ifstream& in, const std::string& path, std::uint64_t pos, void* dst, std::size_t n,
-            const std::string& what) {
-  in.clear();
-  in.seekg(std::streamoff(pos));
-  in.read(static_cast<char*>(dst), std::streamsize(n));
-  if (!in || std::size_t(in.gcount()) != n) Bad(path, "truncated file: cannot read " + what);
-}
+// The bytes of a LAS file: streamed from a file, or in memory.
+class LasSource {
+ public:
+  LasSource(std::ifstream& in, std::uint64_t size) : in_(&in), size_(size) {}
+  LasSource(const std::uint8_t* data, std::size_t size) : data_(data), size_(size) {}
+  std::uint64_t size() const { return size_; }
 
-LasHeader ReadHeader(std::ifstream& in, const std::string& path, std::uint64_t fsize) {
+  // Reads exactly n bytes at pos or throws "truncated".
+  void ReadAt(const std::string& path, std::uint64_t pos, void* dst, std::size_t n, const std::string& what) {
+    if (!in_) {
+      if (pos > size_ || n > size_ - pos) Bad(path, "truncated file: cannot read " + what);
+      if (n) std::memcpy(dst, data_ + pos, n);
+      return;
+    }
+    in_->clear();
+    in_->seekg(std::streamoff(pos));
+    in_->read(static_cast<char*>(dst), std::streamsize(n));
+    if (!*in_ || std::size_t(in_->gcount()) != n) Bad(path, "truncated file: cannot read " + what);
+  }
+
+ private:
+  std::ifstream* in_ = nullptr;
+  const std::uint8_t* data_ = nullptr;
+  std::uint64_t size_ = 0;
+};
+
+LasHeader ReadHeader(LasSource& in, const std::string& path) {
+  const std::uint64_t fsize = in.size();
   if (fsize < 4) Bad(path, "not a LAS file (" + std::to_string(fsize) + " bytes)");
   unsigned char h[375] = {};
   const std::size_t got = std::size_t(std::min<std::uint64_t>(fsize, sizeof h));
-  ReadAt(in, path, 0, h, got, "the header");
+  in.ReadAt(path, 0, h, got, "the header");
   if (std::memcmp(h, "LASF", 4) != 0) Bad(path, "not a LAS file (no \"LASF\" signature)");
   if (got < 227) Bad(path, "truncated LAS header (" + std::to_string(got) + " of at least 227 bytes)");
 
@@ -143,7 +161,7 @@ LasHeader ReadHeader(std::ifstream& in, const std::string& path, std::uint64_t f
       Bad(path, "variable length record " + std::to_string(i + 1) + " of " + std::to_string(L.num_vlrs) +
                     " runs past the point data offset");
     unsigned char v[54];
-    ReadAt(in, path, pos, v, sizeof v, "a variable length record");
+    in.ReadAt(path, pos, v, sizeof v, "a variable length record");
     const std::string user(reinterpret_cast<const char*>(v + 2), strnlen(reinterpret_cast<const char*>(v + 2), 16));
     const int record_id = U16(v + 18);
     const std::uint64_t len = U16(v + 20);
@@ -152,7 +170,7 @@ LasHeader ReadHeader(std::ifstream& in, const std::string& path, std::uint64_t f
     if (user == "laszip encoded" && record_id == 22204) LazError(path);
     if (user == "LASF_Projection" && record_id == 2112 && len > 0) {
       std::string wkt(len, '\0');
-      ReadAt(in, path, pos + 54, wkt.data(), len, "the WKT record");
+      in.ReadAt(path, pos + 54, wkt.data(), len, "the WKT record");
       wkt.resize(strnlen(wkt.c_str(), wkt.size()));
       L.crs_wkt = wkt;
     }
@@ -163,14 +181,15 @@ LasHeader ReadHeader(std::ifstream& in, const std::string& path, std::uint64_t f
 
 // Calls f(x, y, z) for every point that passes the filter, streaming the file.
 template <class F>
-std::uint64_t ForEachPoint(std::ifstream& in, const std::string& path, const LasHeader& L, bool drop_noise, F&& f) {
+std::uint64_t ForEachPoint(LasSource& in, const std::string& path, const LasHeader& L, bool drop_noise, F&& f) {
   const std::uint64_t per_chunk = std::max<std::uint64_t>(1, kChunkBytes / L.record_length);
   std::vector<unsigned char> buf(std::size_t(std::min(per_chunk, L.count) * L.record_length));
   const bool extended = L.format >= 6;
   std::uint64_t kept = 0;
   for (std::uint64_t done = 0; done < L.count;) {
     const std::uint64_t n = std::min(per_chunk, L.count - done);
-    ReadAt(in, path, L.point_offset + done * L.record_length, buf.data(), std::size_t(n * L.record_length), "point records");
+    in.ReadAt(path, L.point_offset + done * L.record_length, buf.data(), std::size_t(n * L.record_length),
+              "point records");
     for (std::uint64_t i = 0; i < n; ++i) {
       const unsigned char* p = buf.data() + i * L.record_length;
       if (drop_noise) {
@@ -185,6 +204,8 @@ std::uint64_t ForEachPoint(std::ifstream& in, const std::string& path, const Las
   }
   return kept;
 }
+
+DepthRaster Rasterise(LasSource& in, const std::string& path, const LasRasterOptions& options);
 
 }  // namespace
 
@@ -203,9 +224,23 @@ DepthRaster RasteriseLas(const std::string& path, const LasRasterOptions& option
   if (Lower(fs::path(path).extension().string()) == ".laz") LazError(path);
   const std::uint64_t fsize = fs::file_size(path, ec);
   Require(!ec, ErrorCode::kIo, path + ": cannot read the file size");
-  std::ifstream in(path, std::ios::binary);
-  Require(in.good(), ErrorCode::kIo, path + ": cannot open for reading");
-  const LasHeader L = ReadHeader(in, path, fsize);
+  std::ifstream file(path, std::ios::binary);
+  Require(file.good(), ErrorCode::kIo, path + ": cannot open for reading");
+  LasSource in(file, fsize);
+  return Rasterise(in, path, options);
+}
+
+DepthRaster RasteriseLasBytes(const std::string& name, const std::uint8_t* data, std::size_t size,
+                              const LasRasterOptions& options) {
+  options.Check();
+  LasSource in(data, size);
+  return Rasterise(in, name, options);
+}
+
+namespace {
+
+DepthRaster Rasterise(LasSource& in, const std::string& path, const LasRasterOptions& options) {
+  const LasHeader L = ReadHeader(in, path);
 
   // Pass 1: the extent of the kept points (the header bounds are not trusted).
   double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
@@ -250,4 +285,5 @@ DepthRaster RasteriseLas(const std::string& path, const LasRasterOptions& option
   return out;
 }
 
+}  // namespace
 }  // namespace mvkp::geo

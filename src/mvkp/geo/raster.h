@@ -17,6 +17,8 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
+#include <cstdint>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -67,6 +69,12 @@ DepthRaster ReadDepthRaster(const std::string& path, const DepthReadOptions& opt
 // counts against the file size, scales) before reading any point; never reads
 // past the end of the file. No flatness check (ReadDepthRaster does that).
 DepthRaster RasteriseLas(const std::string& path, const LasRasterOptions& options = {});
+
+// The same for a LAS file held in memory (`size` bytes at `data`, e.g. an
+// upload); `name` stands for the file in error messages. The same checks
+// apply, so no input makes it read outside those bytes.
+DepthRaster RasteriseLasBytes(const std::string& name, const std::uint8_t* data, std::size_t size,
+                              const LasRasterOptions& options = {});
 
 // Fills holes (NaN cells) in place with the height of the nearest valid cell.
 // A hole is a connected (8-neighbour) region of NaN cells; its width is taken

@@ -425,6 +425,27 @@ TEST_F(Scratch, LasBadInputs) {
   ExpectError([&] { RasteriseLas(Write("ok.las", good), o); }, ErrorCode::kInvalidArgument, "fill_max_gap_m");
 }
 
+// From memory: the same raster as from the file, and the same errors, naming
+// the given name; every truncation is refused without reading past the end.
+TEST_F(Scratch, LasFromBytesMatchesTheFile) {
+  LasSpec s = Spec(4, 6);
+  s.wkt = "LOCAL_CS[\"x\"]";
+  const std::vector<std::uint8_t> good = MakeLas(s, Grid(6, 4));
+  const DepthRaster f = RasteriseLas(Write("g.las", good), Res1());
+  const DepthRaster m = RasteriseLasBytes("upload", good.data(), good.size(), Res1());
+  ASSERT_EQ(m.z.size(), f.z.size());
+  EXPECT_EQ(cv::norm(m.z, f.z, cv::NORM_INF), 0.0);
+  EXPECT_EQ(m.geo, f.geo);
+  EXPECT_EQ(m.crs_wkt, "LOCAL_CS[\"x\"]");
+  for (std::size_t n : {std::size_t(0), std::size_t(3), std::size_t(200), good.size() - 1}) {
+    const std::vector<std::uint8_t> cut(good.begin(), good.begin() + std::ptrdiff_t(n));
+    ExpectError([&] { RasteriseLasBytes("upload", cut.data(), cut.size(), Res1()); }, ErrorCode::kBadImage, "upload: ");
+  }
+  LasRasterOptions o;
+  o.res_m = -1;
+  ExpectError([&] { RasteriseLasBytes("upload", good.data(), good.size(), o); }, ErrorCode::kInvalidArgument, "res_m");
+}
+
 // Truncations at every length and random byte changes: a result or an
 // mvkp::Error, never a crash or another exception.
 TEST_F(Scratch, LasFuzzNeverCrashes) {

@@ -291,13 +291,18 @@ struct FfvaIndex::Query {
 
   void Quantise(const internal::FfvaKernels& k, float threshold) {
     scale_threshold = threshold;
-    inv_scale = kThresholdUnits / threshold;
+    // A zero threshold (k exact duplicates found) would make the scale
+    // infinite and 0 * inf NaN: the largest finite scale keeps zero bounds
+    // at 0 and takes every positive one to 255 instead.
+    inv_scale = std::min(kThresholdUnits / threshold, std::numeric_limits<float>::max());
     k.quantise(bound.data(), bound.size(), inv_scale, lut.data());
   }
   // Largest byte sum that may still hold a vector within `threshold`.
   std::uint8_t ByteThreshold(float threshold) const {
     const float t = threshold * inv_scale * (1.f + 1e-5f);  // round the threshold up, never down
-    return t >= 255.f ? 255 : std::uint8_t(t);
+    // NaN (an infinite threshold, scale 0) lets everything through, as t >= 255
+    // does; converting it to an integer would be undefined.
+    return t < 255.f ? std::uint8_t(t) : 255;
   }
 };
 

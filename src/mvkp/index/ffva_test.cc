@@ -214,6 +214,32 @@ TEST(Ffva, ExactKnnEqualsBruteForce) {
   EXPECT_GT(cases, 4000);
 }
 
+// The byte filter's scale at the extremes: no neighbour yet (threshold
+// infinite) and k exact duplicates of the query found (threshold 0). Both made
+// NaN (inf * 0) that was converted to a byte, undefined behaviour the
+// sanitizer build reports (issue 19); the results must stay brute force's.
+TEST(Ffva, InfiniteAndZeroThresholdsKeepTheFilterExact) {
+  const int dim = 8;
+  const std::size_t n = 300;
+  std::vector<float> db(n * dim);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int j = 0; j < dim; ++j) db[i * dim + j] = i % 4 == 0 ? 1.f : float((i * 31 + std::size_t(j) * 7) % 19);
+  auto brute = MakeBruteForceIndex();
+  brute->Build(db.data(), n, dim, nullptr);
+  for (int scan : {1, 1 << 20}) {
+    auto ffva = MakeFfvaIndex(FfvaOptions{FfvaOptions::Filter::kExact, 32, scan});
+    ffva->Build(db.data(), n, dim, nullptr);
+    for (int k : {1, 3, 20}) {
+      const std::vector<float> q(dim, 1.f);  // 75 stored copies of it
+      std::vector<Neighbor> a(static_cast<std::size_t>(k)), b(static_cast<std::size_t>(k));
+      brute->Search(q.data(), k, a.data());
+      ffva->Search(q.data(), k, b.data());
+      ExpectSameNeighbours(a, b, "duplicates");
+      EXPECT_EQ(b[std::size_t(k) - 1].distance, 0.f);
+    }
+  }
+}
+
 // The definition of "nearest, and nearest with another label", by a full scan
 // in (distance, id) order over brute-force distances.
 void NaiveTwoDistinct(const std::vector<float>& db, const std::vector<std::int32_t>& labels, int dim, const float* q,

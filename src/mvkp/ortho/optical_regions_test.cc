@@ -59,7 +59,10 @@ Scene MakeScene(unsigned seed, int size = 1000) {
   cv::RNG rng(seed);
   const cv::Size sz(size, size);
   // Ground: multi-scale grass texture (fBm-like), asphalt roads.
-  cv::Mat1f tex = Noise(sz, 10, 32, rng) + Noise(sz, 8, 8, rng) + Noise(sz, 7, 2, rng);
+  // Drawn in a fixed order: the operands of one sum (like the arguments of one
+  // call) are evaluated in an order the compiler picks, so clang drew other scenes.
+  const cv::Mat1f t3 = Noise(sz, 7, 2, rng), t2 = Noise(sz, 8, 8, rng), t1 = Noise(sz, 10, 32, rng);
+  cv::Mat1f tex = t1 + t2 + t3;
   cv::Mat3f img(sz);
   for (int y = 0; y < size; ++y)
     for (int x = 0; x < size; ++x) {
@@ -77,7 +80,8 @@ Scene MakeScene(unsigned seed, int size = 1000) {
 
   // Bare-soil patches: brown, textured like the grass (natural, fBm-like).
   for (int k = 0; k < 6; ++k) {
-    const cv::Point c(rng.uniform(0, size), rng.uniform(0, size));
+    const int cy = rng.uniform(0, size), cx = rng.uniform(0, size);
+    const cv::Point c(cx, cy);  // fixed order, as above
     const int rad = rng.uniform(30, 60);
     std::vector<cv::Point> blob;
     for (int j = 0; j < 16; ++j) {
@@ -116,8 +120,9 @@ Scene MakeScene(unsigned seed, int size = 1000) {
         const float g = static_cast<float>(rng.uniform(105, 125));
         r.colour = cv::Vec3f(g + 6, g, g - 4);
       } else if (r.kind == RoofKind::kPitched) {  // red tiles
-        r.colour = cv::Vec3f(static_cast<float>(rng.uniform(45, 70)), static_cast<float>(rng.uniform(65, 90)),
-                             static_cast<float>(rng.uniform(160, 200)));
+        const float r2 = static_cast<float>(rng.uniform(160, 200)), r1 = static_cast<float>(rng.uniform(65, 90)),
+                    r0 = static_cast<float>(rng.uniform(45, 70));  // fixed order, as above
+        r.colour = cv::Vec3f(r0, r1, r2);
       } else {
         const float g = static_cast<float>(rng.uniform(135, 195));
         const float tint = static_cast<float>(rng.uniform(-8, 8));
@@ -170,7 +175,8 @@ Scene MakeScene(unsigned seed, int size = 1000) {
       const float lx = sx * r.w / 2, ly = r.h / 2;
       c = cv::Point(cvRound(r.centre.x + ca * lx - sa * ly), cvRound(r.centre.y + sa * lx + ca * ly));
     } else {
-      c = cv::Point(rng.uniform(0, size), rng.uniform(0, size));
+      const int cy = rng.uniform(0, size), cx = rng.uniform(0, size);  // fixed order, as above
+      c = cv::Point(cx, cy);
     }
     std::vector<cv::Point> blob;
     for (int k = 0; k < 24; ++k) {
@@ -451,7 +457,9 @@ TEST(OpticalRegions, Montpellier) {
 TEST(OrthoModels, FbmFitOnSyntheticTexture) {
   cv::RNG rng(3);
   const cv::Size sz(300, 300);
-  cv::Mat1f t = Noise(sz, 16, 16, rng) + Noise(sz, 10, 4, rng) + Noise(sz, 6, 1, rng);
+  // Fixed order (the operands of one sum are evaluated in any order).
+  const cv::Mat1f n3 = Noise(sz, 6, 1, rng), n2 = Noise(sz, 10, 4, rng), n1 = Noise(sz, 16, 16, rng);
+  cv::Mat1f t = n1 + n2 + n3;
   cv::Mat1b g;
   t += 128;
   t.convertTo(g, CV_8U);

@@ -280,7 +280,10 @@ TEST_F(RecognizerTest, WordsFindNothingInNonTargetsAndForgetRemovedTargets) {
   // same pose, and nothing for a target that is not there.
   const RecognitionResult one = rec.RecognizeOne(v.image, "building");
   ASSERT_EQ(one.found.size(), 1u);
-  const Recognition* full = Find(rec.Recognize(v.image), "building");
+  // Find points into the result: keep it alive (a temporary here was a
+  // use after free, found by the sanitizer build).
+  const RecognitionResult all = rec.Recognize(v.image);
+  const Recognition* full = Find(all, "building");
   ASSERT_TRUE(full);
   EXPECT_EQ(one.found[0].inliers, full->inliers);
   EXPECT_LT(cv::norm(cv::Mat(one.found[0].homography), cv::Mat(full->homography), cv::NORM_INF), 1e-9);

@@ -27,16 +27,22 @@ Scene MakeScene(std::uint64_t seed) {
   Scene s;
   s.photo = cv::Mat(600, 800, CV_8UC3);
   cv::randn(s.photo, cv::Scalar(110, 115, 105), cv::Scalar(12, 12, 12));
-  for (int i = 0; i < 12; ++i)  // roads and markings: edges that are not roofs
-    cv::line(s.photo, cv::Point(int(U(rng) * 800), int(U(rng) * 600)), cv::Point(int(U(rng) * 800), int(U(rng) * 600)),
-             cv::Scalar(70 + 100 * U(rng), 70 + 100 * U(rng), 70 + 100 * U(rng)), 3 + int(10 * U(rng)));
+  // Values are drawn one statement at a time: the arguments of one call are
+  // evaluated in an order the compiler picks, and clang drew other scenes.
+  for (int i = 0; i < 12; ++i) {  // roads and markings: edges that are not roofs
+    const int thick = 3 + int(10 * U(rng));
+    const double b2 = 70 + 100 * U(rng), b1 = 70 + 100 * U(rng), b0 = 70 + 100 * U(rng);
+    const int y1 = int(U(rng) * 600), x1 = int(U(rng) * 800), y0 = int(U(rng) * 600), x0 = int(U(rng) * 800);
+    cv::line(s.photo, cv::Point(x0, y0), cv::Point(x1, y1), cv::Scalar(b0, b1, b2), thick);
+  }
   // photo -> depth: rotation 35 deg, scale 0.7, shift, mild perspective
   const double a = 35 * CV_PI / 180, sc = 0.7;
   s.photo_to_depth = cv::Matx33d(sc * std::cos(a), -sc * std::sin(a), 300, sc * std::sin(a), sc * std::cos(a), 40,
                                  2e-5, -1e-5, 1);
   std::vector<Contour> photo_roofs;
   for (int i = 0; i < 14; ++i) {
-    const cv::Point2f c(float(80 + 640 * U(rng)), float(70 + 460 * U(rng)));
+    const float cy = float(70 + 460 * U(rng)), cx = float(80 + 640 * U(rng));  // in this order, as above
+    const cv::Point2f c(cx, cy);
     const float w = float(25 + 40 * U(rng)), h = float(20 + 35 * U(rng));
     Contour r = {c + cv::Point2f(-w, -h), c + cv::Point2f(w, -h), c + cv::Point2f(w, h), c + cv::Point2f(-w / 3, h),
                  c + cv::Point2f(-w / 3, h / 2), c + cv::Point2f(-w, h / 2)};
