@@ -19,6 +19,7 @@ pkgs=(
   pybind11-dev python3-dev python3-pytest  # Python module `mvkp` (python/) and its tests
   doxygen                  # API reference (make docs)
   dpkg-dev fakeroot        # make deb (CPack DEB generator, dpkg-shlibdeps)
+  clang-14 libclang-rt-14-dev llvm-14  # make sanitize / make fuzz: ASan, UBSan, libFuzzer, llvm-symbolizer
 )
 missing=()
 for p in "${pkgs[@]}"; do
