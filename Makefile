@@ -19,8 +19,13 @@ configure: deps $(BUILD)/CMakeCache.txt
 build: configure
 	cmake --build $(BUILD) -j $(JOBS)
 
+# Every test: the unit, CLI, web and install tests in $(BUILD), then the
+# ASan + UBSan run with the short fuzz (`make sanitize`, below). SANITIZE=0
+# skips the second part for a quick local run; CI always runs both.
+SANITIZE ?= 1
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+	@if [ "$(SANITIZE)" != 0 ]; then $(MAKE) --no-print-directory sanitize; fi
 
 # ASan + UBSan (issue 19): the library and its unit tests built with clang in
 # $(SAN_BUILD), with -fsanitize=fuzzer-no-link so that the same objects serve
