@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
 
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
+#include "mvkp/describe/internal/orient_kernels.h"
 
 namespace mvkp {
 namespace {
@@ -32,6 +34,16 @@ inline float Bilinear(const cv::Mat& img, float x, float y) {
   return (1 - fy) * ((1 - fx) * r0[0] + fx * r0[dx]) + fy * ((1 - fx) * r1[0] + fx * r1[dx]);
 }
 
+// Bilinear without the border clamps, for 0 <= x < cols - 2, 0 <= y < rows - 2
+// (where the clamps above change nothing: the same value, bit for bit).
+inline float BilinearInside(const cv::Mat& img, float x, float y) {
+  const int x0 = int(x), y0 = int(y);
+  const float fx = x - x0, fy = y - y0;
+  const float* r0 = img.ptr<float>(y0) + x0;
+  const float* r1 = img.ptr<float>(y0 + 1) + x0;
+  return (1 - fy) * ((1 - fx) * r0[0] + fx * r0[1]) + fy * ((1 - fx) * r1[0] + fx * r1[1]);
+}
+
 }  // namespace
 
 void DescriberOptions::Check() const {
@@ -46,11 +58,10 @@ void FeatureOptions::Check() const {
   describer.Check();
 }
 
-Describer::Describer(const DescriberOptions& options) : options_(options), projector_(ToProjector(options)) {
-  const int r = options_.orientation_radius;
-  umax_.resize(r + 1);
-  for (int v = 0; v <= r; ++v) umax_[v] = int(std::floor(std::sqrt(double(r * r - v * v)) + 0.5));
-}
+Describer::Describer(const DescriberOptions& options)
+    : options_(options),
+      projector_(ToProjector(options)),
+      disc_(std::make_shared<const internal::DiscTable>(options.orientation_radius)) {}
 
 void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, float* out) const {
   CV_Assert(smoothed.type() == CV_8UC1);
@@ -65,41 +76,42 @@ void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, flo
   const float shift = float(b / 2) - float(b - 1) / 2.f;
   std::vector<float> offs(n);
   for (int j = 0; j < n; ++j) offs[j] = -k / 2.f + j * b + b / 2.f;
+  // Farthest a rotated sample lies from the centre, with a pixel's margin.
+  float reach = 0.f;
+  for (const float o : offs) reach = std::max(reach, std::abs(o));
+  reach = reach * std::sqrt(2.f) + 1.f;
 
   const int r = options_.orientation_radius;
+  static const internal::DiscMomentsFn simd_moments = internal::DiscMomentsSimd();
+  const internal::DiscMomentsFn simd = r <= internal::kMaxSimdRadius ? simd_moments : nullptr;
   std::vector<float> g(std::size_t(n) * n);
   for (std::size_t i = 0; i < kps.size(); ++i) {
     Keypoint& kp = kps[i];
     float c = 1.f, s = 0.f;
     if (options_.orient) {
       const int px = int(std::lround(kp.x)), py = int(std::lround(kp.y));
-      double m10 = 0, m01 = 0;
+      std::int64_t m10 = 0, m01 = 0;
+      const internal::DiscTable& disc = *disc_;
+      const std::ptrdiff_t step = std::ptrdiff_t(smoothed.step[0]);
       if (px - r >= 0 && py - r >= 0 && px + r < smoothed.cols && py + r < smoothed.rows) {
-        for (int v = -r; v <= r; ++v) {
-          const std::uint8_t* row = smoothed.ptr<std::uint8_t>(py + v);
-          const int w = umax_[std::abs(v)];
-          int sum = 0, wsum = 0;
-          for (int u = -w; u <= w; ++u) {
-            const int val = row[px + u];
-            sum += val;
-            wsum += u * val;
-          }
-          m10 += wsum;
-          m01 += double(v) * sum;
-        }
+        const std::uint8_t* centre = smoothed.ptr<std::uint8_t>(py) + px;
+        if (simd && px - 15 >= 0 && px + 16 < smoothed.cols)
+          simd(centre, step, disc, m10, m01);
+        else
+          internal::DiscMomentsScalar(centre, step, disc, m10, m01);
       } else {  // near the border: clamp reads
         for (int v = -r; v <= r; ++v) {
           const int yy = std::clamp(py + v, 0, smoothed.rows - 1);
           const std::uint8_t* row = smoothed.ptr<std::uint8_t>(yy);
-          const int w = umax_[std::abs(v)];
+          const int w = disc.umax[std::abs(v)];
           for (int u = -w; u <= w; ++u) {
             const int val = row[std::clamp(px + u, 0, smoothed.cols - 1)];
-            m10 += double(u) * val;
-            m01 += double(v) * val;
+            m10 += std::int64_t(u) * val;
+            m01 += std::int64_t(v) * val;
           }
         }
       }
-      kp.angle = float(std::atan2(m01, m10));
+      kp.angle = float(std::atan2(double(m01), double(m10)));
       c = std::cos(kp.angle);
       s = std::sin(kp.angle);
     } else {
@@ -108,11 +120,16 @@ void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, flo
     // Sample the block means at the rotated block centres.
     const float cx = kp.x - 0.5f + shift, cy = kp.y - 0.5f + shift;
     double sum = 0, sum2 = 0;
+    // Away from the border (every rotated sample at least a pixel inside) the
+    // clamps are skipped.
+    const bool inside = cx - reach >= 0.f && cy - reach >= 0.f && cx + reach < float(box.cols - 2) &&
+                        cy + reach < float(box.rows - 2);
     for (int yi = 0; yi < n; ++yi) {
       const float oy = offs[yi];
       for (int xi = 0; xi < n; ++xi) {
         const float ox = offs[xi];
-        const float v = Bilinear(box, cx + c * ox - s * oy, cy + s * ox + c * oy);
+        const float x = cx + c * ox - s * oy, y = cy + s * ox + c * oy;
+        const float v = inside ? BilinearInside(box, x, y) : Bilinear(box, x, y);
         g[std::size_t(yi) * n + xi] = v;
         sum += v;
         sum2 += double(v) * v;

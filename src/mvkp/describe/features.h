@@ -16,6 +16,7 @@
 // matter) and scaled by 1/grid, which makes the kernels orthonormal.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -24,6 +25,10 @@
 #include "mvkp/wht/wht.h"
 
 namespace mvkp {
+
+namespace internal {
+struct DiscTable;
+}
 
 struct DescriberOptions {
   int patch_size = 32;          // k: patch side in pixels (thesis: 32)
@@ -46,7 +51,7 @@ class Describer {
  private:
   DescriberOptions options_;
   wht::Projector projector_;
-  std::vector<int> umax_;  // half-width of the orientation disc per row
+  std::shared_ptr<const internal::DiscTable> disc_;  // the orientation disc (internal/orient_kernels.h)
 };
 
 struct FeatureOptions {

@@ -1,6 +1,9 @@
 #include "mvkp/describe/features.h"
+#include "mvkp/describe/internal/orient_kernels.h"
 
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -92,6 +95,37 @@ TEST(ExtractFeatures, ReturnsOneDescriptorPerKeypoint) {
   EXPECT_LE(f.keypoints.size(), 500u);
   EXPECT_EQ(f.descriptors.rows, int(f.keypoints.size()));
   EXPECT_EQ(f.descriptors.cols, 20);
+}
+
+// The AVX2 disc moments equal the scalar reference (and a direct sum over the
+// disc) for every radius the fast path takes, at random points of a random image.
+TEST(DiscMoments, SimdEqualsScalarReference) {
+  const internal::DiscMomentsFn simd = internal::DiscMomentsSimd();
+  if (!simd) GTEST_SKIP() << "no AVX2 on this CPU";
+  cv::Mat img(80, 96, CV_8UC1);
+  cv::RNG rng(11);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+  img.at<std::uint8_t>(40, 48) = 255;
+  for (int r = 2; r <= internal::kMaxSimdRadius; ++r) {
+    const internal::DiscTable t(r);
+    for (int k = 0; k < 40; ++k) {
+      const int px = rng.uniform(16, img.cols - 17), py = rng.uniform(r, img.rows - r);
+      const std::uint8_t* c = img.ptr<std::uint8_t>(py) + px;
+      std::int64_t a10 = -1, a01 = -1, b10 = -2, b01 = -2, d10 = 0, d01 = 0;
+      internal::DiscMomentsScalar(c, std::ptrdiff_t(img.step[0]), t, a10, a01);
+      simd(c, std::ptrdiff_t(img.step[0]), t, b10, b01);
+      for (int v = -r; v <= r; ++v)
+        for (int u = -r; u <= r; ++u)
+          if (std::abs(u) <= t.umax[std::abs(v)]) {
+            d10 += u * int(img.at<std::uint8_t>(py + v, px + u));
+            d01 += v * int(img.at<std::uint8_t>(py + v, px + u));
+          }
+      ASSERT_EQ(a10, d10) << "r " << r;
+      ASSERT_EQ(a01, d01) << "r " << r;
+      ASSERT_EQ(b10, a10) << "r " << r << " at " << px << "," << py;
+      ASSERT_EQ(b01, a01) << "r " << r << " at " << px << "," << py;
+    }
+  }
 }
 
 }  // namespace

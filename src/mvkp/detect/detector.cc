@@ -28,8 +28,17 @@ void MinEigen3x3(const cv::Mat& gray, cv::Mat& eig) {
   CV_Assert(gray.type() == CV_8UC1);
   const int W = gray.cols, H = gray.rows;
   eig.create(H, W, CV_32F);
-  eig.setTo(0);
-  if (W < 5 || H < 5) return;
+  if (W < 5 || H < 5) {
+    eig.setTo(0);
+    return;
+  }
+  // Only the outermost two rows and columns are not written below.
+  eig.rowRange(0, 2).setTo(0);
+  eig.rowRange(H - 2, H).setTo(0);
+  for (int y = 2; y < H - 2; ++y) {
+    float* e = eig.ptr<float>(y);
+    e[0] = e[1] = e[W - 2] = e[W - 1] = 0.f;
+  }
   // Products of Sobel gradients summed over 3 columns, kept for the last three
   // rows; summing those gives the 3x3 structure tensor. Float arithmetic is
   // exact here (|g| <= 1020, so sums of 9 products stay below 2^24) and
@@ -64,31 +73,63 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
     MinEigen3x3(gray, eig);
   else
     cv::cornerMinEigenVal(gray, eig, opt.block_size, 3, cv::BORDER_REFLECT_101);
-  double maxv = 0;
-  cv::minMaxLoc(eig, nullptr, &maxv, nullptr, nullptr, mask);
-  if (maxv < opt.min_strength || maxv <= 0) return out;
   // The relative threshold: of the frame's strongest response, or with the
   // grid of each cell's, so a dim region in a bright frame keeps its corners.
   const bool by_cell = opt.grid_share > 0 && opt.grid_cells > 1;
   const double cell_side = double(std::max(gray.cols, gray.rows)) / opt.grid_cells;
   const int gcw = by_cell ? std::max(1, int(std::ceil(gray.cols / cell_side))) : 1;
   const int gch = by_cell ? std::max(1, int(std::ceil(gray.rows / cell_side))) : 1;
+  // Each cell's strongest response (under the mask), in one pass over the
+  // response: cell (cx, cy) spans columns [int(cx * side), int((cx + 1) * side))
+  // and the same for rows. The cells cover the frame, so the frame's maximum
+  // is theirs. (One cv::minMaxLoc per cell cost more than the detection.)
+  std::vector<float> cell_max(std::size_t(gcw) * gch, 0.f);
+  std::vector<char> cell_empty(cell_max.size(), 0);  // no pixels (tiny frames): the frame's threshold applies
+  double maxv = 0;
+  if (by_cell) {
+    std::vector<int> col_end(static_cast<std::size_t>(gcw));
+    for (int cx = 0; cx < gcw; ++cx) col_end[cx] = std::min(gray.cols, int((cx + 1) * cell_side));
+    for (int cy = 0; cy < gch; ++cy) {
+      const int y0 = int(cy * cell_side), y1 = std::min(gray.rows, int((cy + 1) * cell_side));
+      float* cm = &cell_max[std::size_t(cy) * gcw];
+      for (int cx = 0; cx < gcw; ++cx)
+        cell_empty[std::size_t(cy) * gcw + cx] = y1 <= y0 || col_end[cx] <= int(cx * cell_side);
+      for (int y = y0; y < y1; ++y) {
+        const float* e = eig.ptr<float>(y);
+        const std::uint8_t* m = mask.empty() ? nullptr : mask.ptr<std::uint8_t>(y);
+        int x = 0;
+        for (int cx = 0; cx < gcw; ++cx) {
+          float v = cm[cx];
+          const int x1 = col_end[cx];
+          if (m) {
+            for (x = std::max(x, int(cx * cell_side)); x < x1; ++x)
+              if (m[x] && e[x] > v) v = e[x];
+          } else {
+            for (x = std::max(x, int(cx * cell_side)); x < x1; ++x) v = e[x] > v ? e[x] : v;
+          }
+          cm[cx] = v;
+        }
+      }
+    }
+    for (const float v : cell_max) maxv = std::max(maxv, double(v));
+  } else {
+    cv::minMaxLoc(eig, nullptr, &maxv, nullptr, nullptr, mask);
+  }
+  if (maxv < opt.min_strength || maxv <= 0) return out;
   std::vector<float> cell_thresh(std::size_t(gcw) * gch, std::max(opt.min_strength, float(maxv) * opt.relative_threshold));
-  std::vector<float> cell_max(std::size_t(gcw) * gch, float(maxv));
   float thresh = cell_thresh[0];
   if (by_cell) {
     thresh = opt.min_strength;
-    for (int cy = 0; cy < gch; ++cy)
-      for (int cx = 0; cx < gcw; ++cx) {
-        const int x0 = int(cx * cell_side), y0 = int(cy * cell_side);
-        const cv::Rect r(x0, y0, std::min(gray.cols, int((cx + 1) * cell_side)) - x0,
-                         std::min(gray.rows, int((cy + 1) * cell_side)) - y0);
-        if (r.width <= 0 || r.height <= 0) continue;
-        double cm = 0;
-        cv::minMaxLoc(eig(r), nullptr, &cm, nullptr, nullptr, mask.empty() ? cv::noArray() : mask(r));
-        cell_thresh[std::size_t(cy) * gcw + cx] = std::max(opt.min_strength, float(cm) * opt.relative_threshold);
-        cell_max[std::size_t(cy) * gcw + cx] = std::max(float(cm), 1e-12f);
+    for (std::size_t i = 0; i < cell_max.size(); ++i) {
+      if (cell_empty[i]) {
+        cell_max[i] = float(maxv);
+        continue;
       }
+      cell_thresh[i] = std::max(opt.min_strength, cell_max[i] * opt.relative_threshold);
+      cell_max[i] = std::max(cell_max[i], 1e-12f);
+    }
+  } else {
+    cell_max.assign(cell_max.size(), float(maxv));
   }
 
   // Local maxima over 3x3: strictly greater than the previous row/left

@@ -367,6 +367,7 @@ void Matcher::Refine(MatchResult& r, const QueryPoints& q) const {
   cv::Matx33d Hr = H;
   const double thr2 = options_.ransac_threshold * options_.ransac_threshold;
   std::vector<cv::Point2f> s2, d2;
+  std::vector<char> kept(src.size(), 0), kept_before;
   int support = 0;
   for (int it = 0; it < 3; ++it) {
     s2.clear();
@@ -374,13 +375,17 @@ void Matcher::Refine(MatchResult& r, const QueryPoints& q) const {
     for (std::size_t i = 0; i < src.size(); ++i) {
       const cv::Vec3d p = Hr * cv::Vec3d(src[i].x, src[i].y, 1);
       const double ex = p[0] / p[2] - dst[i].x, ey = p[1] / p[2] - dst[i].y;
-      if (ex * ex + ey * ey <= thr2) {
+      kept[i] = ex * ex + ey * ey <= thr2;
+      if (kept[i]) {
         s2.push_back(src[i]);
         d2.push_back(dst[i]);
       }
     }
     support = int(s2.size());
     if (support < std::max(8, r.inliers)) return;
+    // The same pairs as the last fit: refitting would give the same homography.
+    if (kept == kept_before) break;
+    kept_before = kept;
     cv::Mat Hn;
     if (options_.geometry == GeometryModel::kHomography) {
       Hn = cv::findHomography(s2, d2, 0);

@@ -1,0 +1,54 @@
+#include "mvkp/describe/internal/orient_kernels.h"
+
+#include <cmath>
+#include <cstdlib>
+
+namespace mvkp::internal {
+
+DiscTable::DiscTable(int radius) : r(radius), umax(std::size_t(radius) + 1) {
+  for (int v = 0; v <= r; ++v) umax[v] = int(std::floor(std::sqrt(double(r * r - v * v)) + 0.5));
+  if (r > kMaxSimdRadius) return;
+  ones.assign(std::size_t(2 * r + 1) * 32, 0);
+  weights.assign(ones.size(), 0);
+  for (int v = -r; v <= r; ++v) {
+    const int w = umax[std::abs(v)];
+    for (int u = -w; u <= w; ++u) {
+      const std::size_t k = std::size_t(v + r) * 32 + std::size_t(u + 15);
+      ones[k] = 1;
+      weights[k] = std::int8_t(u);
+    }
+  }
+}
+
+void DiscMomentsScalar(const std::uint8_t* centre, std::ptrdiff_t step, const DiscTable& t, std::int64_t& m10,
+                       std::int64_t& m01) {
+  std::int64_t a = 0, b = 0;
+  for (int v = -t.r; v <= t.r; ++v) {
+    const std::uint8_t* row = centre + v * step;
+    const int w = t.umax[std::abs(v)];
+    int sum = 0, wsum = 0;
+    for (int u = -w; u <= w; ++u) {
+      const int val = row[u];
+      sum += val;
+      wsum += u * val;
+    }
+    a += wsum;
+    b += std::int64_t(v) * sum;
+  }
+  m10 = a;
+  m01 = b;
+}
+
+namespace {
+bool HasAvx2() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2");
+  }();
+  return has;
+}
+}  // namespace
+
+DiscMomentsFn DiscMomentsSimd() { return HasAvx2() ? DiscMomentsAvx2 : nullptr; }
+
+}  // namespace mvkp::internal
