@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 
@@ -63,16 +64,27 @@ Describer::Describer(const DescriberOptions& options)
       projector_(ToProjector(options)),
       disc_(std::make_shared<const internal::DiscTable>(options.orientation_radius)) {}
 
-void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, float* out) const {
+cv::Mat Describer::Prepare(const cv::Mat& smoothed) const {
   CV_Assert(smoothed.type() == CV_8UC1);
+  // Block means, one per pixel: box filter of side b. A box at integer X has its
+  // centre at X - b/2 + (b-1)/2, hence the half-pixel shift in Compute for even b.
+  const int b = projector_.block();
+  cv::Mat box;
+  cv::boxFilter(smoothed, box, CV_32F, cv::Size(b, b), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
+  return box;
+}
+
+void Describer::Compute(const cv::Mat& smoothed, std::vector<Keypoint>& kps, float* out) const {
+  if (kps.empty()) return;
+  Compute(smoothed, Prepare(smoothed), kps, out);
+}
+
+void Describer::Compute(const cv::Mat& smoothed, const cv::Mat& box, std::vector<Keypoint>& kps, float* out) const {
+  CV_Assert(smoothed.type() == CV_8UC1);
+  CV_Assert(box.type() == CV_32F && box.size() == smoothed.size());
   if (kps.empty()) return;
   const int k = options_.patch_size, n = projector_.grid(), b = projector_.block();
   const int K = projector_.dims();
-
-  // Block means, one per pixel: box filter of side b. A box at integer X has its
-  // centre at X - b/2 + (b-1)/2, hence the half-pixel shift below for even b.
-  cv::Mat box;
-  cv::boxFilter(smoothed, box, CV_32F, cv::Size(b, b), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
   const float shift = float(b / 2) - float(b - 1) / 2.f;
   std::vector<float> offs(n);
   for (int j = 0; j < n; ++j) offs[j] = -k / 2.f + j * b + b / 2.f;
@@ -153,23 +165,31 @@ cv::Mat ScaleFrameDown(const cv::Mat& gray, double f) {
   return img;
 }
 
-Features ExtractFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask) {
+DetectedFrame DetectFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask) {
   CV_Assert(gray.type() == CV_8UC1);
-  Features f;
+  DetectedFrame d;
   Timer t;
-  cv::Mat smoothed;
   if (options.smooth_sigma > 0.f)
-    cv::GaussianBlur(gray, smoothed, cv::Size(), options.smooth_sigma, options.smooth_sigma, cv::BORDER_REFLECT_101);
+    cv::GaussianBlur(gray, d.smoothed, cv::Size(), options.smooth_sigma, options.smooth_sigma, cv::BORDER_REFLECT_101);
   else
-    smoothed = gray;
-  f.smooth_ms = t.ElapsedMs();
+    d.smoothed = gray;
+  d.smooth_ms = t.ElapsedMs();
   t.Restart();
-  f.keypoints = DetectMinEigen(smoothed, options.detector, mask);
-  f.detect_ms = t.ElapsedMs();
-  t.Restart();
+  d.keypoints = DetectMinEigen(d.smoothed, options.detector, mask);
+  d.detect_ms = t.ElapsedMs();
+  return d;
+}
+
+Features ExtractFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask) {
+  DetectedFrame d = DetectFeatures(gray, options, mask);
+  Features f;
+  f.keypoints = std::move(d.keypoints);
+  f.smooth_ms = d.smooth_ms;
+  f.detect_ms = d.detect_ms;
+  Timer t;
   Describer describer(options.describer);
   f.descriptors.create(int(f.keypoints.size()), describer.dims(), CV_32F);
-  if (!f.keypoints.empty()) describer.Compute(smoothed, f.keypoints, f.descriptors.ptr<float>());
+  if (!f.keypoints.empty()) describer.Compute(d.smoothed, f.keypoints, f.descriptors.ptr<float>());
   f.describe_ms = t.ElapsedMs();
   return f;
 }

@@ -48,6 +48,13 @@ class Describer {
   // off) and writes keypoints.size() x dims() floats, row-major, to out.
   void Compute(const cv::Mat& smoothed, std::vector<Keypoint>& keypoints, float* out) const;
 
+  // The same in two steps, for callers that describe a frame's points in
+  // several batches: Prepare computes the per-frame part (the block means,
+  // CV_32F) once; Compute with it describes any subset, each point exactly
+  // as the one-step Compute would.
+  cv::Mat Prepare(const cv::Mat& smoothed) const;
+  void Compute(const cv::Mat& smoothed, const cv::Mat& prepared, std::vector<Keypoint>& keypoints, float* out) const;
+
  private:
   DescriberOptions options_;
   wht::Projector projector_;
@@ -71,6 +78,15 @@ struct Features {
 // when f < 1, the frame itself (not copied) otherwise. Used where large
 // frames are searched at a working size.
 cv::Mat ScaleFrameDown(const cv::Mat& gray, double f);
+
+// Smoothing and detection only (ExtractFeatures without the description),
+// for callers that describe only some of the points (Describer::Prepare).
+struct DetectedFrame {
+  cv::Mat smoothed;  // the frame the describer reads
+  std::vector<Keypoint> keypoints;
+  double smooth_ms = 0, detect_ms = 0;
+};
+DetectedFrame DetectFeatures(const cv::Mat& gray, const FeatureOptions& options, const cv::Mat& mask = cv::Mat());
 
 // Smooths, detects and describes. Detection is restricted to mask != 0 if a
 // mask (CV_8UC1, same size) is given.

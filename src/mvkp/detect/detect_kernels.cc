@@ -14,6 +14,17 @@ void NmsRowScalar(const float* up, const float* c, const float* dn, int x0, int 
   }
 }
 
+float RowMaxScalar(const float* row, const std::uint8_t* mask, int x0, int x1, float init) {
+  float v = init;
+  if (mask) {
+    for (int x = x0; x < x1; ++x)
+      if (mask[x] && row[x] > v) v = row[x];
+  } else {
+    for (int x = x0; x < x1; ++x) v = row[x] > v ? row[x] : v;
+  }
+  return v;
+}
+
 void EigenRowScalar(const float* a0, const float* a1, const float* a2, const float* b0, const float* b1, const float* b2,
                     const float* c0, const float* c1, const float* c2, int x0, int x1, float s2, float* out) {
   impl::EigenRow(a0, a1, a2, b0, b1, b2, c0, c1, c2, x0, x1, s2, out);
@@ -34,6 +45,7 @@ bool HasAvx2() {
 }
 }  // namespace
 
+RowMaxFn BestRowMax() { return HasAvx2() ? RowMaxAvx2 : RowMaxScalar; }
 NmsRowFn BestNmsRow() { return HasAvx2() ? NmsRowAvx2 : NmsRowScalar; }
 EigenRowFn BestEigenRow() { return HasAvx2() ? EigenRowAvx2 : EigenRowScalar; }
 GradientRowFn BestGradientRow() { return HasAvx2() ? GradientRowAvx2 : GradientRowScalar; }

@@ -33,6 +33,21 @@ void NmsRowAvx2(const float* up, const float* c, const float* dn, int x0, int x1
   NmsRowScalar(up, c, dn, x, x1, thresh, out);
 }
 
+float RowMaxAvx2(const float* row, const std::uint8_t* mask, int x0, int x1, float init) {
+  if (mask || x1 - x0 < 16) return RowMaxScalar(row, mask, x0, x1, init);
+  __m256 a = _mm256_set1_ps(init), b = a;
+  int x = x0;
+  for (; x + 16 <= x1; x += 16) {
+    a = _mm256_max_ps(a, _mm256_loadu_ps(row + x));
+    b = _mm256_max_ps(b, _mm256_loadu_ps(row + x + 8));
+  }
+  a = _mm256_max_ps(a, b);
+  __m128 m = _mm_max_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps(a, 1));
+  m = _mm_max_ps(m, _mm_movehl_ps(m, m));
+  m = _mm_max_ss(m, _mm_shuffle_ps(m, m, 1));
+  return RowMaxScalar(row, nullptr, x, x1, _mm_cvtss_f32(m));
+}
+
 void EigenRowAvx2(const float* a0, const float* a1, const float* a2, const float* b0, const float* b1, const float* b2,
                   const float* c0, const float* c1, const float* c2, int x0, int x1, float s2, float* out) {
   impl::EigenRow(a0, a1, a2, b0, b1, b2, c0, c1, c2, x0, x1, s2, out);

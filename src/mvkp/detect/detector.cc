@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <string>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 
@@ -87,6 +90,7 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
   std::vector<char> cell_empty(cell_max.size(), 0);  // no pixels (tiny frames): the frame's threshold applies
   double maxv = 0;
   if (by_cell) {
+    static const internal::RowMaxFn row_max = internal::BestRowMax();
     std::vector<int> col_end(static_cast<std::size_t>(gcw));
     for (int cx = 0; cx < gcw; ++cx) col_end[cx] = std::min(gray.cols, int((cx + 1) * cell_side));
     for (int cy = 0; cy < gch; ++cy) {
@@ -97,18 +101,7 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
       for (int y = y0; y < y1; ++y) {
         const float* e = eig.ptr<float>(y);
         const std::uint8_t* m = mask.empty() ? nullptr : mask.ptr<std::uint8_t>(y);
-        int x = 0;
-        for (int cx = 0; cx < gcw; ++cx) {
-          float v = cm[cx];
-          const int x1 = col_end[cx];
-          if (m) {
-            for (x = std::max(x, int(cx * cell_side)); x < x1; ++x)
-              if (m[x] && e[x] > v) v = e[x];
-          } else {
-            for (x = std::max(x, int(cx * cell_side)); x < x1; ++x) v = e[x] > v ? e[x] : v;
-          }
-          cm[cx] = v;
-        }
+        for (int cx = 0; cx < gcw; ++cx) cm[cx] = row_max(e, m, int(cx * cell_side), col_end[cx], cm[cx]);
       }
     }
     for (const float v : cell_max) maxv = std::max(maxv, double(v));
@@ -159,9 +152,31 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
       cand.push_back({float(x) + ox, float(y) + oy, v, 0.f});
     }
   }
-  std::sort(cand.begin(), cand.end(), [](const Keypoint& a, const Keypoint& b) {
+  // Strongest first, ties by (y, x). Sorted as 64-bit keys (strength bits
+  // inverted over the candidate's index: strengths are >= 0, so their bit
+  // patterns order as the values do), then runs of equal strength by (y, x).
+  const auto by_order = [](const Keypoint& a, const Keypoint& b) {
     return a.strength > b.strength || (a.strength == b.strength && (a.y < b.y || (a.y == b.y && a.x < b.x)));
-  });
+  };
+  {
+    std::vector<std::uint64_t> keys(cand.size());
+    for (std::size_t i = 0; i < cand.size(); ++i) {
+      const float v = cand[i].strength + 0.f;  // >= 0 (thresholds are); -0 becomes +0
+      std::uint32_t bits;
+      std::memcpy(&bits, &v, sizeof bits);
+      keys[i] = (std::uint64_t(~bits) << 32) | std::uint64_t(i);
+    }
+    std::sort(keys.begin(), keys.end());
+    std::vector<Keypoint> sorted(cand.size());
+    for (std::size_t i = 0; i < keys.size(); ++i) sorted[i] = cand[std::size_t(keys[i] & 0xffffffffu)];
+    for (std::size_t i = 0; i < sorted.size();) {
+      std::size_t j = i + 1;
+      while (j < sorted.size() && sorted[j].strength == sorted[i].strength) ++j;
+      if (j - i > 1) std::sort(sorted.begin() + std::ptrdiff_t(i), sorted.begin() + std::ptrdiff_t(j), by_order);
+      i = j;
+    }
+    cand = std::move(sorted);
+  }
 
   // Greedy minimum spacing on a grid of cells of side min_distance, first
   // with a quota per coarse cell, then for the rest of the budget.

@@ -1,5 +1,8 @@
 #include "mvkp/detect/detector.h"
 
+#include <utility>
+#include <vector>
+
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -143,6 +146,22 @@ TEST(DetectKernels, Avx2EqualsScalar) {
     internal::NmsRowAvx2(eig.ptr<float>(y - 1), eig.ptr<float>(y), eig.ptr<float>(y + 1), 1, W - 1, 1e-5f, q);
     EXPECT_EQ(p, q) << "row " << y;
   }
+  // Row maxima (per-cell thresholds), with and without a mask, over spans
+  // shorter and longer than a vector, against the scalar loop and cv::minMaxLoc.
+  cv::Mat mask(eig.size(), CV_8UC1);
+  cv::RNG(5).fill(mask, cv::RNG::UNIFORM, 0, 2);
+  for (int y = 0; y < eig.rows; y += 7)
+    for (const auto& [x0, x1] : std::vector<std::pair<int, int>>{{0, W}, {3, 11}, {5, 40}, {17, 18}, {9, 9}, {1, W - 2}}) {
+      const float* row = eig.ptr<float>(y);
+      const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
+      EXPECT_EQ(internal::RowMaxAvx2(row, nullptr, x0, x1, 0.f), internal::RowMaxScalar(row, nullptr, x0, x1, 0.f));
+      EXPECT_EQ(internal::RowMaxAvx2(row, m, x0, x1, -1.f), internal::RowMaxScalar(row, m, x0, x1, -1.f));
+      if (x1 > x0) {
+        double mx = 0;
+        cv::minMaxLoc(eig.row(y).colRange(x0, x1), nullptr, &mx);
+        EXPECT_EQ(internal::RowMaxAvx2(row, nullptr, x0, x1, -1.f), float(mx)) << y << " " << x0 << ".." << x1;
+      }
+    }
 }
 
 }  // namespace

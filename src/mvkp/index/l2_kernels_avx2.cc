@@ -34,7 +34,56 @@ void TwoDistinctNormQ(const float* blocks, const float* norms, const std::int32_
   if (small)
     for (int i = 0; i < Q * dim; ++i) qm2[i] = -2.f * queries[i];
   const __m256 zero = _mm256_setzero_ps();
-  for (std::size_t b = 0; b < nblocks; ++b) {
+  // Block b's distances in acc: offered to each query's top two in lane order.
+  auto offer = [&](std::size_t b, const __m256* acc) {
+    for (int k = 0; k < Q; ++k) {
+      int mask = _mm256_movemask_ps(_mm256_cmp_ps(acc[k], bound[k], _CMP_LT_OQ));
+      if (__builtin_expect(mask == 0, 1)) continue;
+      alignas(32) float dist[kLanes];
+      _mm256_store_ps(dist, _mm256_max_ps(acc[k], zero));
+      const std::int32_t* lab = labels + b * kLanes;
+      while (mask) {
+        const int l = __builtin_ctz(unsigned(mask));
+        mask &= mask - 1;
+        TopTwoOffer(t[k], dist[l], std::int32_t(b * kLanes + l), lab[l]);
+      }
+      bound[k] = _mm256_set1_ps(t[k].Bound());
+    }
+  };
+  std::size_t b = 0;
+  if (small) {
+    // Two blocks at a time: twice the independent FMA chains, and each
+    // broadcast query value serves both. Offered in block order, so the
+    // result is the one-block loop's.
+    for (; b + 2 <= nblocks; b += 2) {
+      const float* blk0 = blocks + b * std::size_t(dim) * kLanes;
+      const float* blk1 = blk0 + std::size_t(dim) * kLanes;
+      const __m256 xn0 = _mm256_loadu_ps(norms + b * kLanes), xn1 = _mm256_loadu_ps(norms + (b + 1) * kLanes);
+      __m256 acc0[Q], acc1[Q];
+      for (int k = 0; k < Q; ++k) {
+        acc0[k] = _mm256_add_ps(xn0, qn[k]);
+        acc1[k] = _mm256_add_ps(xn1, qn[k]);
+      }
+      for (int d = 0; d < dim; ++d) {
+        const __m256 row0 = _mm256_loadu_ps(blk0 + d * kLanes), row1 = _mm256_loadu_ps(blk1 + d * kLanes);
+        for (int k = 0; k < Q; ++k) {
+          const __m256 qv = _mm256_broadcast_ss(qm2 + k * dim + d);
+          acc0[k] = _mm256_fmadd_ps(qv, row0, acc0[k]);
+          acc1[k] = _mm256_fmadd_ps(qv, row1, acc1[k]);
+        }
+      }
+      // Copies: the accumulators themselves must not escape to memory, or
+      // they are kept there through the loop above.
+      __m256 out0[Q], out1[Q];
+      for (int k = 0; k < Q; ++k) {
+        out0[k] = acc0[k];
+        out1[k] = acc1[k];
+      }
+      offer(b, out0);
+      offer(b + 1, out1);
+    }
+  }
+  for (; b < nblocks; ++b) {
     const float* blk = blocks + b * std::size_t(dim) * kLanes;
     const __m256 xn = _mm256_loadu_ps(norms + b * kLanes);
     __m256 acc[Q];
@@ -51,19 +100,9 @@ void TwoDistinctNormQ(const float* blocks, const float* norms, const std::int32_
           acc[k] = _mm256_fmadd_ps(_mm256_set1_ps(-2.f * queries[k * dim + d]), row, acc[k]);
       }
     }
-    for (int k = 0; k < Q; ++k) {
-      int mask = _mm256_movemask_ps(_mm256_cmp_ps(acc[k], bound[k], _CMP_LT_OQ));
-      if (__builtin_expect(mask == 0, 1)) continue;
-      alignas(32) float dist[kLanes];
-      _mm256_store_ps(dist, _mm256_max_ps(acc[k], zero));
-      const std::int32_t* lab = labels + b * kLanes;
-      while (mask) {
-        const int l = __builtin_ctz(unsigned(mask));
-        mask &= mask - 1;
-        TopTwoOffer(t[k], dist[l], std::int32_t(b * kLanes + l), lab[l]);
-      }
-      bound[k] = _mm256_set1_ps(t[k].Bound());
-    }
+    __m256 out[Q];
+    for (int k = 0; k < Q; ++k) out[k] = acc[k];
+    offer(b, out);
   }
 }
 

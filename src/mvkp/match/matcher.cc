@@ -252,14 +252,49 @@ std::array<cv::Point2f, 4> ProjectOutline(const cv::Matx33d& H, int width, int h
   return {out[0], out[1], out[2], out[3]};
 }
 
+void Matcher::QueryPoints::SetFrame(const Describer& d, const cv::Mat& smoothed_frame,
+                                    const std::vector<Keypoint>& keypoints) {
+  Timer t;
+  describer = &d;
+  dims = d.dims();
+  smoothed = smoothed_frame;
+  kps = keypoints;
+  if (!kps.empty()) prepared = d.Prepare(smoothed);
+  pts.clear();
+  for (const auto& k : kps) pts.emplace_back(k.x, k.y);
+  desc.assign(pts.size() * std::size_t(dims), 0.f);
+  ready.assign(pts.size(), 0);
+  describe_ms += t.ElapsedMs();
+}
+
+void Matcher::QueryPoints::Describe(const std::vector<int>& idx) {
+  Timer t;
+  std::vector<int> todo;
+  for (const int i : idx)
+    if (!ready[std::size_t(i)]) todo.push_back(i);
+  if (todo.empty()) return;
+  std::vector<Keypoint> batch;
+  batch.reserve(todo.size());
+  for (const int i : todo) batch.push_back(kps[std::size_t(i)]);
+  std::vector<float> out(todo.size() * std::size_t(dims));
+  describer->Compute(smoothed, prepared, batch, out.data());
+  for (std::size_t k = 0; k < todo.size(); ++k) {
+    std::copy_n(&out[k * std::size_t(dims)], dims, &desc[std::size_t(todo[k]) * std::size_t(dims)]);
+    ready[std::size_t(todo[k])] = 1;
+  }
+  describe_ms += t.ElapsedMs();
+}
+
 void Matcher::QueryPoints::Add(const Features& f) {
   for (const auto& k : f.keypoints) pts.emplace_back(k.x, k.y);
   if (f.descriptors.rows)
     desc.insert(desc.end(), f.descriptors.ptr<float>(), f.descriptors.ptr<float>() + f.descriptors.total());
+  ready.resize(pts.size(), 1);
 }
 
-void Matcher::Verify(MatchResult& r, const QueryPoints& q) const {
+void Matcher::Verify(MatchResult& r, QueryPoints& q) const {
   Timer t;
+  const double described_before = q.describe_ms;
   r.found = false;
   r.inliers = 0;
   r.support = 0;
@@ -293,10 +328,13 @@ void Matcher::Verify(MatchResult& r, const QueryPoints& q) const {
     }
   }
   if (r.found && options_.refine) Refine(r, q);
-  r.time.verify_ms += t.ElapsedMs();
+  // Points the refinement described count as description.
+  const double described = q.describe_ms - described_before;
+  r.time.describe_ms += described;
+  r.time.verify_ms += t.ElapsedMs() - described;
 }
 
-void Matcher::Refine(MatchResult& r, const QueryPoints& q) const {
+void Matcher::Refine(MatchResult& r, QueryPoints& q) const {
   const int dims = model_.params.dims;
   const int nq = int(q.pts.size());
   if (nq == 0) return;
@@ -318,23 +356,48 @@ void Matcher::Refine(MatchResult& r, const QueryPoints& q) const {
   std::vector<std::vector<int>> grid(std::size_t(gw) * gh);
   for (int i = 0; i < nq; ++i)
     if (q.pts[i].x >= 0 && q.pts[i].y >= 0) grid[std::size_t(int(q.pts[i].y / R)) * gw + int(q.pts[i].x / R)].push_back(i);
-  // Each location: the best query point near where the homography puts it.
-  std::vector<float> best_d(nq, std::numeric_limits<float>::infinity());
-  std::vector<int> best_loc(nq, -1);
+  // Where the homography puts each location (those it can pair).
   const cv::Matx33d& H = r.homography;
-  for (int l = 0; l < int(model_.locations.size()); ++l) {
+  const int nloc = int(model_.locations.size());
+  std::vector<cv::Point2f> proj(static_cast<std::size_t>(nloc));
+  std::vector<char> on(static_cast<std::size_t>(nloc), 0);
+  float bx0 = std::numeric_limits<float>::infinity(), by0 = bx0, bx1 = -bx0, by1 = -bx0;
+  for (int l = 0; l < nloc; ++l) {
     const auto& L = model_.locations[l];
     const double w = H(2, 0) * L.x + H(2, 1) * L.y + H(2, 2);
     if (!(w > 0)) continue;
     const float px = float((H(0, 0) * L.x + H(0, 1) * L.y + H(0, 2)) / w);
     const float py = float((H(1, 0) * L.x + H(1, 1) * L.y + H(1, 2)) / w);
     if (!(px >= -R && py >= -R && px <= xmax + R && py <= ymax + R)) continue;
+    proj[std::size_t(l)] = {px, py};
+    on[std::size_t(l)] = 1;
+    bx0 = std::min(bx0, px);
+    by0 = std::min(by0, py);
+    bx1 = std::max(bx1, px);
+    by1 = std::max(by1, py);
+  }
+  // Only points within R of a projected location can pair: describe those
+  // of the frame's points that are not described yet.
+  if (std::find(q.ready.begin(), q.ready.end(), 0) != q.ready.end()) {
+    std::vector<int> near;
+    for (int i = 0; i < nq; ++i)
+      if (!q.ready[std::size_t(i)] && q.pts[i].x >= bx0 - R && q.pts[i].x <= bx1 + R && q.pts[i].y >= by0 - R &&
+          q.pts[i].y <= by1 + R)
+        near.push_back(i);
+    q.Describe(near);
+  }
+  // Each location: the best query point near where the homography puts it.
+  std::vector<float> best_d(nq, std::numeric_limits<float>::infinity());
+  std::vector<int> best_loc(nq, -1);
+  for (int l = 0; l < nloc; ++l) {
+    if (!on[std::size_t(l)]) continue;
+    const float px = proj[std::size_t(l)].x, py = proj[std::size_t(l)].y;
     const int cx = int(std::floor(px / R)), cy = int(std::floor(py / R));
     for (int yy = std::max(0, cy - 1); yy <= std::min(gh - 1, cy + 1); ++yy)
       for (int xx = std::max(0, cx - 1); xx <= std::min(gw - 1, cx + 1); ++xx)
         for (int i : grid[std::size_t(yy) * gw + xx]) {
           const float dx = q.pts[i].x - px, dy = q.pts[i].y - py;
-          if (dx * dx + dy * dy > R * R) continue;
+          if (dx * dx + dy * dy > R * R || !q.ready[std::size_t(i)]) continue;
           const float* qd = &q.desc[std::size_t(i) * dims];
           float dmin = std::numeric_limits<float>::infinity();
           for (int row : location_rows_[l]) {
@@ -472,17 +535,6 @@ void SpreadSplit(const std::vector<Keypoint>& kps, cv::Size size, int cells, int
     if (!in[i]) rest.push_back(i);
 }
 
-Features Subset(const Features& f, const std::vector<int>& idx) {
-  Features s;
-  s.keypoints.reserve(idx.size());
-  s.descriptors.create(int(idx.size()), f.descriptors.cols, CV_32F);
-  for (int k = 0; k < int(idx.size()); ++k) {
-    s.keypoints.push_back(f.keypoints[idx[k]]);
-    f.descriptors.row(idx[k]).copyTo(s.descriptors.row(k));
-  }
-  return s;
-}
-
 // Smaller over larger local scale of H at the object's centre: cos(tilt) for
 // a plane seen from afar, 1 for a frontal view (0 when degenerate).
 double Anisotropy(const cv::Matx33d& H, int w, int h) {
@@ -533,22 +585,41 @@ MatchResult Matcher::Match(const cv::Mat& gray) const {
 MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) const {
   MatchResult r;
   FeatureOptions fo = QueryFeatureOptions(model_.params, options_.max_points, options_.grid_cells, options_.grid_share);
-  Features f = ExtractFeatures(gray, fo);
-  r.keypoints = int(f.keypoints.size());
-  r.time.smooth_ms = f.smooth_ms;
-  r.time.detect_ms = f.detect_ms;
-  r.time.describe_ms = f.describe_ms;
+  const DetectedFrame d = DetectFeatures(gray, fo);
+  r.keypoints = int(d.keypoints.size());
+  r.time.smooth_ms = d.smooth_ms;
+  r.time.detect_ms = d.detect_ms;
+  // The frame's points are described as they are needed: the first pass's,
+  // then the rest if that pass is not enough, or only those on the target
+  // when refinement wants them.
+  const Describer describer(fo.describer);
   QueryPoints q;
-  if (options_.refine) q.Add(f);
-  if (options_.first_pass_points > 0 && int(f.keypoints.size()) > options_.first_pass_points) {
+  q.SetFrame(describer, d.smoothed, d.keypoints);
+  r.time.describe_ms += q.describe_ms;
+  auto described = [&](const std::vector<int>& idx) {
+    const double before = q.describe_ms;
+    q.Describe(idx);
+    r.time.describe_ms += q.describe_ms - before;
+    Features s;
+    s.keypoints.reserve(idx.size());
+    s.descriptors.create(int(idx.size()), q.dims, CV_32F);
+    for (int k = 0; k < int(idx.size()); ++k) {
+      s.keypoints.push_back(d.keypoints[std::size_t(idx[k])]);
+      std::copy_n(&q.desc[std::size_t(idx[k]) * std::size_t(q.dims)], q.dims, s.descriptors.ptr<float>(k));
+    }
+    return s;
+  };
+  if (options_.first_pass_points > 0 && r.keypoints > options_.first_pass_points) {
     std::vector<int> first, rest;
-    SpreadSplit(f.keypoints, gray.size(), options_.grid_cells, options_.first_pass_points, first, rest);
-    SearchAndFilter(Subset(f, first), 0, r);
+    SpreadSplit(d.keypoints, gray.size(), options_.grid_cells, options_.first_pass_points, first, rest);
+    SearchAndFilter(described(first), 0, r);
     Verify(r, q);
     if (r.found && r.inliers >= options_.retry_below_inliers) return r;
-    SearchAndFilter(Subset(f, rest), 0, r);
+    SearchAndFilter(described(rest), 0, r);
   } else {
-    SearchAndFilter(f, 0, r);
+    std::vector<int> all(d.keypoints.size());
+    std::iota(all.begin(), all.end(), 0);
+    SearchAndFilter(described(all), 0, r);
   }
   Verify(r, q);
   if (r.found && r.inliers >= options_.retry_below_inliers) return r;
@@ -663,7 +734,8 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
       SearchAndFilter(h, 0, part);
       r.time.search_ms += part.time.search_ms;
       if (options_.refine) q.Add(h);
-      Verify(part, QueryPoints{});
+      QueryPoints none;
+      Verify(part, none);
       r.time.verify_ms += part.time.verify_ms;
       if (part.found && (!best.found || part.inliers > best.inliers)) best = std::move(part);
     }

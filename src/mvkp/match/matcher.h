@@ -134,18 +134,30 @@ class Matcher {
   const MatchOptions& options() const { return options_; }
 
  private:
-  // Query points of every pass, in frame pixels, with their descriptors.
+  // Query points of every pass, in frame pixels, with their descriptors. The
+  // main frame's points are described on demand (SetFrame, Describe): an
+  // easy frame is found from its first-pass points, and refinement then
+  // needs only the rest that lie on the target.
   struct QueryPoints {
     std::vector<cv::Point2f> pts;
-    std::vector<float> desc;
-    void Add(const Features& f);
+    std::vector<float> desc;  // pts.size() x dims; a row is valid where ready
+    std::vector<char> ready;
+    int dims = 0;
+    // The frame whose points (the first kps.size() of pts) are described on demand.
+    const Describer* describer = nullptr;
+    cv::Mat smoothed, prepared;
+    std::vector<Keypoint> kps;
+    double describe_ms = 0;   // time spent in Describe
+    void SetFrame(const Describer& d, const cv::Mat& smoothed_frame, const std::vector<Keypoint>& keypoints);
+    void Describe(const std::vector<int>& idx);  // those of the frame's points not described yet
+    void Add(const Features& f);                 // points already described
   };
   void SearchAndFilter(const Features& f, std::size_t first, MatchResult& r) const;
-  void Verify(MatchResult& r, const QueryPoints& q) const;
+  void Verify(MatchResult& r, QueryPoints& q) const;
   // The cascade at one resolution: all points, then half resolution, then
   // (upsample) twice the resolution, then (tilt) simulated steep views.
   MatchResult MatchAt(const cv::Mat& gray, bool tilt, bool upsample) const;
-  void Refine(MatchResult& r, const QueryPoints& q) const;
+  void Refine(MatchResult& r, QueryPoints& q) const;
 
   Model model_;
   MatchOptions options_;

@@ -18,6 +18,14 @@ void NmsRowScalar(const float* up, const float* c, const float* dn, int x0, int 
 void NmsRowAvx2(const float* up, const float* c, const float* dn, int x0, int x1, float thresh, std::vector<int>& out);
 NmsRowFn BestNmsRow();
 
+// The largest of init and row[x] for x in [x0, x1) (only where mask[x] != 0
+// if mask is not null): the per-cell maxima of the response. Values are not
+// NaN, so the order of the comparisons does not matter.
+using RowMaxFn = float (*)(const float* row, const std::uint8_t* mask, int x0, int x1, float init);
+float RowMaxScalar(const float* row, const std::uint8_t* mask, int x0, int x1, float init);
+float RowMaxAvx2(const float* row, const std::uint8_t* mask, int x0, int x1, float init);
+RowMaxFn BestRowMax();
+
 // One output row of the 3x3 structure tensor's smaller eigenvalue from the
 // three rows of column-summed gradient products (see MinEigen3x3):
 // out[x] = (A + C) - sqrt((A - C)^2 + B^2) with A, C = half the summed
