@@ -87,15 +87,6 @@ constexpr const char* kColumns[] = {"id",    "title",  "artist",   "year",  "url
 
 constexpr const char* kInfoColumns = "id, title, artist, year, url, meta, width, height, added_at";
 
-std::string NowUtcIso8601() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 bool ValidUtf8(const std::string& s) {
   std::size_t i = 0;
   const auto* p = reinterpret_cast<const unsigned char*>(s.data());
@@ -286,6 +277,15 @@ void ValidateRecord(const std::string& path, const TargetRecord& r) {
 }
 
 }  // namespace
+
+std::string NowUtcIso8601() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
 
 void ValidateTargetInfo(const TargetInfo& info, bool new_id, const std::string& where) {
   ValidateInfo(where, info, new_id);

@@ -56,6 +56,10 @@ struct TargetRecord {
 // cheap: callers that train before adding call it first.
 void ValidateTargetInfo(const TargetInfo& info, bool new_id, const std::string& where = "target");
 
+// The current time as the store writes it (added_at): UTC, ISO 8601 to the
+// second, e.g. "2026-12-03T04:05:06Z".
+std::string NowUtcIso8601();
+
 class TargetStore {
  public:
   enum class Mode { kReadOnly, kReadWrite };

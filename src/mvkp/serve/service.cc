@@ -421,15 +421,6 @@ struct Service::Impl {
 
   void Log(const Json& j) { a.log(Dump(j)); }
 
-  static std::string NowUtc() {
-    const std::time_t t = std::time(nullptr);
-    std::tm tm{};
-    gmtime_r(&t, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return buf;
-  }
-
   std::size_t Size() const {
     std::shared_lock<std::shared_mutex> lock(mutex);
     return rec ? rec->size() : 0;
@@ -469,7 +460,7 @@ struct Service::Impl {
       Log({{"event", "reloaded"}, {"reason", "database changed"}, {"exhibits", Size()}, {"ms", t.ElapsedMs()}});
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> h(health_mutex);
-      if (reload_error.empty()) reload_error_since = NowUtc();
+      if (reload_error.empty()) reload_error_since = NowUtcIso8601();
       reload_error = e.what();
       ++reload_failures;
       ++reload_failures_in_a_row;
