@@ -137,7 +137,7 @@ int RunEval(EvalArgs& a) {
     summary[m] = {{"pairs", n}, {"ok5", double(ok5) / n}, {"ok10", double(ok10) / n}, {"correct", corr / n},
                   {"inliers", inl / n}, {"median_ms", Median(ms)}};
   }
-  std::printf("mvkp training: %zu targets, median %.0f ms\n", train_ms.size(), Median(train_ms));
+  std::printf("mvkp training: %s, median %.0f ms\n", Count(train_ms.size(), "target").c_str(), Median(train_ms));
   if (!a.json_out.empty()) {
     nlohmann::json j = {{"summary", summary}, {"train_ms_median", Median(train_ms)}};
     for (const auto& r : rows)

@@ -79,7 +79,7 @@ int RunRecognize(RecognizeArgs& a) {
   const double load_ms = tl.ElapsedMs();
   // Load time: a text line first, or fields of every JSON line (stderr stays for errors only).
   if (!a.json)
-    std::printf("loaded %zu targets from %s in %.1f ms (%.2f MB in memory%s)\n", rec.size(), a.db.c_str(), load_ms,
+    std::printf("loaded %s from %s in %.1f ms (%.2f MB in memory%s)\n", Count(rec.size(), "target").c_str(), a.db.c_str(), load_ms,
                 bytes / 1048576.0,
                 a.opt.search == RecognizerSearch::kWords
                     ? (", " + std::to_string(encoded) + " from stored word encodings").c_str()

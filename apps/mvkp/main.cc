@@ -9,19 +9,44 @@
 
 #include "commands.h"
 #include "mvkp/core/error.h"
+#include "mvkp/model/model.h"
+
+#ifndef MVKP_VERSION_STRING
+#define MVKP_VERSION_STRING "unknown"
+#endif
 
 namespace mvkp::cli {
 namespace {
 std::vector<std::string> g_argv;
 }  // namespace
 const std::vector<std::string>& CliArgv() { return g_argv; }
+
+namespace {
+// "mvkp db add": the subcommands the command line selected, for error messages
+// ("mvkp SUBCOMMAND: message", the one style every command uses).
+std::string CommandPath(const CLI::App& app) {
+  std::string path = "mvkp";
+  const CLI::App* at = &app;
+  for (;;) {
+    const auto subs = at->get_subcommands();
+    if (subs.empty()) break;
+    at = subs.front();
+    path += " " + at->get_name();
+  }
+  return path;
+}
+}  // namespace
 }  // namespace mvkp::cli
 
 int main(int argc, char** argv) {
   mvkp::cli::g_argv.assign(argv, argv + argc);
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   CLI::App app{"mvkp - fast planar image matching (Multiple View Kernel Projection)"};
-  app.require_subcommand(1);
+  app.require_subcommand(0, 1);
+  app.set_version_flag("--version",
+                       std::string("mvkp ") + MVKP_VERSION_STRING + " (model format " +
+                           std::to_string(mvkp::kModelFormatVersion) + ", OpenCV " + CV_VERSION + ")",
+                       "print the version and exit");
   cv::setNumThreads(1);
   int threads = 1;
   app.add_option("--threads", threads, "OpenCV worker threads (timings are single-thread by default)")
@@ -65,17 +90,31 @@ int main(int argc, char** argv) {
   }
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // Usage errors in the same style as every other error, with where to look.
+    const std::string where = mvkp::cli::CommandPath(app);
+    std::fprintf(stderr, "%s: %s (see '%s --help')\n", where.c_str(), e.what(), where.c_str());
+    return 2;  // usage error
   } catch (const mvkp::Error& e) {
-    std::fprintf(stderr, "mvkp: error: %s\n", e.what());
+    std::fprintf(stderr, "%s: %s\n", mvkp::cli::CommandPath(app).c_str(), e.what());
     return 1;
   } catch (const cv::Exception& e) {
-    std::fprintf(stderr, "mvkp: OpenCV error: %s\n", e.err.c_str());
+    std::fprintf(stderr, "%s: OpenCV error: %s\n", mvkp::cli::CommandPath(app).c_str(), e.err.c_str());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "mvkp: error: %s\n", e.what());
+    std::fprintf(stderr, "%s: %s\n", mvkp::cli::CommandPath(app).c_str(), e.what());
     return 1;
+  }
+  // A bare `mvkp`: what it can do, not an error code.
+  if (app.get_subcommands().empty()) {
+    std::fputs(app.help().c_str(), stdout);
+    return 0;
   }
   return code;
 }

@@ -36,6 +36,10 @@ cv::Mat DrawPair(const cv::Mat& object, const cv::Mat& frame, const MatchResult&
 // "out.png" with index 3 of several -> "out-3.png"; unchanged when count == 1.
 std::string IndexedPath(const std::string& path, int index, int count);
 
+// "1 target", "3 targets": a count with its noun in the right number
+// (`plural` when it is not the noun + "s").
+std::string Count(std::size_t n, const std::string& noun, const std::string& plural = "");
+
 // Median of a sample (0 when empty).
 double Median(std::vector<double> v);
 

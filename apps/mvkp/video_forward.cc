@@ -53,11 +53,11 @@ void RegisterVideo(CLI::App& app, int* code) {
       }
       std::fflush(nullptr);
       execv(p.c_str(), argv.data());
-      std::fprintf(stderr, "mvkp: error: cannot run %s: %s\n", p.c_str(), std::strerror(errno));
+      std::fprintf(stderr, "mvkp video: cannot run %s: %s\n", p.c_str(), std::strerror(errno));
       *code = 1;
       return;
     }
-    std::fprintf(stderr, "mvkp: error: 'mvkp video' needs its helper mvkp-video, not found (looked at %s)\n",
+    std::fprintf(stderr, "mvkp video: needs its helper mvkp-video, not found (looked at %s)\n",
                  tried.empty() ? "nothing: /proc/self/exe unreadable" : tried.c_str());
     *code = 1;
   });
