@@ -34,7 +34,8 @@ void JpegEmit(j_common_ptr cinfo, int level) {
 
 }  // namespace
 
-bool DecodeJpeg(const std::uint8_t* data, std::size_t size, bool gray, cv::Mat& out, std::string& error) {
+bool DecodeJpeg(const std::uint8_t* data, std::size_t size, bool gray, cv::Mat& out, std::string& error,
+                int reduce) {
   jpeg_decompress_struct cinfo;
   JpegErr err;
   cinfo.err = jpeg_std_error(&err.mgr);
@@ -49,18 +50,41 @@ bool DecodeJpeg(const std::uint8_t* data, std::size_t size, bool gray, cv::Mat& 
   jpeg_create_decompress(&cinfo);
   jpeg_mem_src(&cinfo, data, static_cast<unsigned long>(size));
   jpeg_read_header(&cinfo, TRUE);
-  cinfo.out_color_space = gray ? JCS_GRAYSCALE : JCS_EXT_BGR;
+  // libjpeg converts CMYK and YCCK only to CMYK; the conversion to BGR is ours.
+  const bool cmyk = cinfo.jpeg_color_space == JCS_CMYK || cinfo.jpeg_color_space == JCS_YCCK;
+  cinfo.out_color_space = cmyk ? JCS_CMYK : gray ? JCS_GRAYSCALE : JCS_EXT_BGR;
+  cinfo.scale_num = 1;
+  cinfo.scale_denom = static_cast<unsigned int>(reduce == 2 || reduce == 4 || reduce == 8 ? reduce : 1);
   jpeg_start_decompress(&cinfo);
-  img.create(int(cinfo.output_height), int(cinfo.output_width), gray ? CV_8UC1 : CV_8UC3);
+  img.create(int(cinfo.output_height), int(cinfo.output_width), cmyk ? CV_8UC4 : gray ? CV_8UC1 : CV_8UC3);
   while (cinfo.output_scanline < cinfo.output_height) {
     JSAMPROW row = img.ptr<std::uint8_t>(int(cinfo.output_scanline));
     jpeg_read_scanlines(&cinfo, &row, 1);
   }
+  // Adobe's CMYK JPEGs (the usual kind) store the inks inverted.
+  const bool inverted = cinfo.saw_Adobe_marker;
   jpeg_finish_decompress(&cinfo);
   jpeg_destroy_decompress(&cinfo);
   if (err.warnings > 0) {
     error = std::string("corrupt or truncated JPEG data: ") + err.message;
     return false;
+  }
+  if (cmyk) {
+    // Naive CMYK -> RGB without a colour profile: R = (1-C)(1-K), and so on.
+    cv::Mat bgr(img.rows, img.cols, CV_8UC3);
+    for (int y = 0; y < img.rows; ++y) {
+      const std::uint8_t* s = img.ptr<std::uint8_t>(y);
+      std::uint8_t* d = bgr.ptr<std::uint8_t>(y);
+      for (int x = 0; x < img.cols; ++x, s += 4, d += 3) {
+        const int c = inverted ? s[0] : 255 - s[0], m = inverted ? s[1] : 255 - s[1];
+        const int yy = inverted ? s[2] : 255 - s[2], k = inverted ? s[3] : 255 - s[3];
+        d[0] = std::uint8_t((yy * k + 127) / 255);
+        d[1] = std::uint8_t((m * k + 127) / 255);
+        d[2] = std::uint8_t((c * k + 127) / 255);
+      }
+    }
+    if (gray) cv::cvtColor(bgr, img, cv::COLOR_BGR2GRAY);
+    else img = bgr;
   }
   out = img;
   return true;
@@ -75,6 +99,7 @@ bool DecodePng(const std::uint8_t* data, std::size_t size, bool gray, cv::Mat& o
     return false;
   }
   image.format = PNG_FORMAT_BGR;
+  image.flags |= PNG_IMAGE_FLAG_16BIT_sRGB;
   cv::Mat bgr(int(image.height), int(image.width), CV_8UC3);
   if (!png_image_finish_read(&image, nullptr, bgr.data, png_int_32(bgr.step), nullptr)) {
     error = std::string("corrupt PNG data: ") + image.message;

@@ -117,6 +117,26 @@ ImageHeader ReadPng(const std::string& name, const std::uint8_t* d, std::size_t 
   return h;
 }
 
+// WebP's canvas size, from its first chunk (lossy VP8, lossless VP8L or the
+// extended VP8X), so that the pixel limit holds before decoding.
+ImageHeader ReadWebp(const std::uint8_t* d, std::size_t n) {
+  ImageHeader h;
+  h.format = "webp";
+  if (n >= 30 && std::memcmp(d + 12, "VP8 ", 4) == 0 && d[23] == 0x9d && d[24] == 0x01 && d[25] == 0x2a) {
+    h.width = (d[26] | (d[27] << 8)) & 0x3fff;
+    h.height = (d[28] | (d[29] << 8)) & 0x3fff;
+  } else if (n >= 25 && std::memcmp(d + 12, "VP8L", 4) == 0 && d[20] == 0x2f) {
+    const std::uint32_t b = std::uint32_t(d[21]) | std::uint32_t(d[22]) << 8 | std::uint32_t(d[23]) << 16 |
+                            std::uint32_t(d[24]) << 24;
+    h.width = int(b & 0x3fff) + 1;
+    h.height = int((b >> 14) & 0x3fff) + 1;
+  } else if (n >= 30 && std::memcmp(d + 12, "VP8X", 4) == 0) {
+    h.width = int(d[24] | (d[25] << 8) | (d[26] << 16)) + 1;
+    h.height = int(d[27] | (d[28] << 8) | (d[29] << 16)) + 1;
+  }
+  return h;
+}
+
 void CheckDims(const std::string& name, long long w, long long h, const ImageLimits& lim) {
   if (w <= 0 || h <= 0) Bad(name, "empty image (0 pixels)");
   if (w > lim.max_side || h > lim.max_side || w * h > lim.max_pixels)
@@ -151,6 +171,10 @@ cv::Mat Decode(const std::string& path, const std::vector<std::uint8_t>& buf, in
   if (std::int64_t(buf.size()) > lim.max_file_bytes) Bad(path, "file is larger than the " + std::to_string(lim.max_file_bytes) + "-byte limit");
   const ImageHeader h = ReadImageHeader(path, buf.data(), buf.size());
   if (h.format == "unknown") Bad(path, "not an image (unrecognised file format)");
+  if (h.format == "gif") Bad(path, "GIF images are not supported; convert it to PNG or JPEG");
+  if (h.format == "heif")
+    Bad(path, "HEIC/HEIF images are not supported; convert it to JPEG (or set the phone's camera to 'Most Compatible')");
+  if (h.format == "avif") Bad(path, "AVIF images are not supported; convert it to JPEG or PNG");
   if (h.width || h.height) CheckDims(path, h.width, h.height, lim);
   if (!h.complete) Bad(path, h.incomplete);
   cv::Mat img;
@@ -197,8 +221,19 @@ ImageHeader ReadImageHeader(const std::string& name, const std::uint8_t* d, std:
   }
   ImageHeader other;
   if (n >= 4 && (std::memcmp(d, "II*\0", 4) == 0 || std::memcmp(d, "MM\0*", 4) == 0)) other.format = "tiff";
-  else if (n >= 12 && std::memcmp(d, "RIFF", 4) == 0 && std::memcmp(d + 8, "WEBP", 4) == 0) other.format = "webp";
-  else other.format = "unknown";
+  else if (n >= 12 && std::memcmp(d, "RIFF", 4) == 0 && std::memcmp(d + 8, "WEBP", 4) == 0) return ReadWebp(d, n);
+  else if (n >= 10 && (std::memcmp(d, "GIF87a", 6) == 0 || std::memcmp(d, "GIF89a", 6) == 0)) {
+    other.format = "gif";
+    other.width = int(d[6] | (d[7] << 8));
+    other.height = int(d[8] | (d[9] << 8));
+  } else if (n >= 12 && std::memcmp(d + 4, "ftyp", 4) == 0) {
+    const std::string brand(reinterpret_cast<const char*>(d + 8), 4);
+    if (brand == "avif" || brand == "avis") other.format = "avif";
+    else if (brand == "heic" || brand == "heix" || brand == "hevc" || brand == "hevx" || brand == "heim" ||
+             brand == "heis" || brand == "mif1" || brand == "msf1")
+      other.format = "heif";
+    else other.format = "unknown";  // e.g. an MP4 video
+  } else other.format = "unknown";
   return other;
 }
 
@@ -212,6 +247,27 @@ cv::Mat LoadImageColor(const std::string& path, const ImageLimits& limits) {
 
 cv::Mat DecodeImageGray(const std::string& name, const std::vector<std::uint8_t>& bytes, const ImageLimits& limits) {
   return Decode(name, bytes, cv::IMREAD_GRAYSCALE, limits);
+}
+
+ReducedImage DecodeImageGrayReduced(const std::string& name, const std::vector<std::uint8_t>& bytes, int min_side,
+                                    const ImageLimits& limits) {
+  ReducedImage r;
+  const ImageHeader h = bytes.empty() ? ImageHeader{} : ReadImageHeader(name, bytes.data(), bytes.size());
+  const int longer = std::max(h.width, h.height);
+  if (h.format == "jpeg" && min_side > 0 && h.complete)
+    while (r.reduce < 8 && longer / (2 * r.reduce) >= min_side) r.reduce *= 2;
+  if (r.reduce == 1) {
+    r.gray = Decode(name, bytes, cv::IMREAD_GRAYSCALE, limits);
+    r.full = r.gray.size();
+    return r;
+  }
+  if (std::int64_t(bytes.size()) > limits.max_file_bytes)
+    Bad(name, "file is larger than the " + std::to_string(limits.max_file_bytes) + "-byte limit");
+  CheckDims(name, h.width, h.height, limits);
+  std::string err;
+  if (!internal::DecodeJpeg(bytes.data(), bytes.size(), true, r.gray, err, r.reduce)) Bad(name, err);
+  r.full = cv::Size(h.width, h.height);
+  return r;
 }
 
 void CheckImage(const cv::Mat& image, const std::string& name, const ImageLimits& limits) {

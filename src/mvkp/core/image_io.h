@@ -24,7 +24,9 @@ struct ImageLimits {
 
 // Dimensions read from a file's header without decoding it.
 struct ImageHeader {
-  std::string format;  // "png", "jpeg", "pnm", "bmp", "tiff", "webp" or "unknown"
+  // "png", "jpeg", "pnm", "bmp", "tiff", "webp", "unknown", or a format named
+  // so that the error can say so: "gif", "heif" (HEIC), "avif"
+  std::string format;
   int width = 0;
   int height = 0;
   bool complete = true;     // false when the data is shorter than the header implies
@@ -44,6 +46,24 @@ cv::Mat LoadImageColor(const std::string& path, const ImageLimits& limits = {});
 // The same checks and decoding for bytes in memory (e.g. an HTTP body);
 // `name` stands for the file in error messages.
 cv::Mat DecodeImageGray(const std::string& name, const std::vector<std::uint8_t>& bytes, const ImageLimits& limits = {});
+
+// A photo decoded for a working size. JPEGs are decoded at 1/2, 1/4 or 1/8
+// of their size (libjpeg's DCT scaling: a fraction of the time and memory)
+// while the longer side stays at least `min_side`; other formats, and
+// min_side <= 0, decode in full. The limits apply to the full size.
+struct ReducedImage {
+  cv::Mat gray;         // CV_8UC1
+  int reduce = 1;       // 1, 2, 4 or 8
+  cv::Size full;        // the image's own size
+  // Maps gray's pixel coordinates to the full image's: reduced pixel x
+  // covers full pixels [x * reduce, (x + 1) * reduce).
+  cv::Matx33d ToFull() const {
+    const double r = reduce, c = (r - 1) / 2;
+    return {r, 0, c, 0, r, c, 0, 0, 1};
+  }
+};
+ReducedImage DecodeImageGrayReduced(const std::string& name, const std::vector<std::uint8_t>& bytes, int min_side,
+                                    const ImageLimits& limits = {});
 
 // Checks an in-memory image (e.g. from numpy or a camera) against the limits.
 void CheckImage(const cv::Mat& image, const std::string& name, const ImageLimits& limits = {});

@@ -313,6 +313,11 @@ class TokenGuard {
   mutable std::mutex mutex_;
 };
 
+// Longer side kept when a request's JPEG is decoded reduced: 1.5x the
+// recogniser's 1280 px working size, so a 4032 px photo decodes at 2016 px
+// and an 8000 px one at 2000 px.
+constexpr int kRecognizeMinSide = 1920;
+
 // A stored image decoded for the service: at full size if within
 // `max_pixels`, else (JPEG) at 1/2, 1/4 or 1/8 when that fits; otherwise an
 // Error(kBadImage) saying so.
@@ -869,8 +874,17 @@ struct Service::Impl {
     ImageLimits lim;
     lim.max_pixels = a.max_pixels;
     lim.max_file_bytes = std::int64_t(a.max_body_mb) << 20;
+    // A phone's 12 or 48 MP JPEG is decoded at 1/2 to 1/8 of its size (DCT
+    // scaling), keeping 1.5x the recogniser's working size, and the answer is
+    // mapped back to the photo's pixels. With a camera model (pose), in full.
+    cv::Matx33d to_full = cv::Matx33d::eye();
+    cv::Size full_size;
     try {
-      gray = DecodeImageGray("request body", std::vector<std::uint8_t>(body.begin(), body.end()), lim);
+      ReducedImage dec = DecodeImageGrayReduced("request body", std::vector<std::uint8_t>(body.begin(), body.end()),
+                                                cam ? 0 : kRecognizeMinSide, lim);
+      gray = dec.gray;
+      to_full = dec.ToFull();
+      full_size = dec.full;
     } catch (const Error& e) {
       const bool too_big = std::string(e.what()).find("limit") != std::string::npos ||
                            std::string(e.what()).find("large") != std::string::npos;
@@ -893,6 +907,14 @@ struct Service::Impl {
       r = rec->Recognize(gray);
       mode = mode == "focus" ? "focus+full" : "full";
     }
+    if (to_full != cv::Matx33d::eye())
+      for (auto& f : r.found) {
+        f.homography = to_full * f.homography;
+        for (auto& p : f.outline) {
+          const cv::Vec3d q = to_full * cv::Vec3d(p.x, p.y, 1);
+          p = cv::Point2f(float(q[0]), float(q[1]));
+        }
+      }
     Json found = Json::array();
     for (const auto& f : r.found) {
       const TargetInfo& t = info.at(f.id);
@@ -916,8 +938,8 @@ struct Service::Impl {
     }
     res.set_content(Dump(Json{{"found", found},
                               {"mode", mode},
-                              {"width", gray.cols},
-                              {"height", gray.rows},
+                              {"width", full_size.width},
+                              {"height", full_size.height},
                               {"time_ms", {{"recognize", r.total_ms()}, {"total", total.ElapsedMs()}}}}),
                     "application/json");
   }

@@ -55,8 +55,10 @@ struct ServiceOptions {
   int threads = 2;                    // CPU work at once (recognition, thumbnails, quality, training)
   int io_threads = 64;                // connection workers (keep-alive clients hold one each)
   int max_inflight = 0;               // recognitions admitted at once (0: 8 x threads); more get 503
-  std::size_t max_body_mb = 10;       // largest request body
-  std::int64_t max_pixels = 12'000'000;  // largest request image; larger stored images are decoded reduced
+  std::size_t max_body_mb = 48;       // largest request body (a 48 MP phone JPEG is 15-30 MB)
+  // Largest request image (a 48 MP phone photo fits); request JPEGs are
+  // decoded reduced to ~2000 px, larger stored images too.
+  std::int64_t max_pixels = 64'000'000;
   int timeout_s = 10;                 // per read/write
   double read_deadline_s = 10;        // to deliver one request, headers and body (at most max_connection_s)
   double max_connection_s = 30;       // total per connection

@@ -453,5 +453,49 @@ TEST_F(ServiceTest, SlowClientsNeitherStarveOthersNorStayLong) {
   for (int fd : slow) ::close(fd);
 }
 
+// Issue 20: phone photos (12 and 48 MP JPEGs) are accepted with the default
+// limits, decoded reduced, and answered in the photo's own pixels.
+TEST_F(ServiceTest, PhonePhotosAreAcceptedAndAnsweredInTheirOwnPixels) {
+  Running s(Options(CopyDb("phone")));
+  auto c = s.Client(60);
+  const cv::Mat art = testing::Sample("starry_night.jpg");
+  for (const cv::Size size : {cv::Size(4032, 3024), cv::Size(8000, 6000)}) {
+    cv::Mat frame;
+    cv::resize(testing::Sample("baboon.jpg"), frame, size, 0, 0, cv::INTER_LINEAR);
+    // The painting at 40 % of the photo's width, off centre, slightly rotated.
+    const double k = 0.4 * size.width / art.cols, a = 0.1;
+    const cv::Matx33d H(k * std::cos(a), -k * std::sin(a), 0.3 * size.width, k * std::sin(a), k * std::cos(a),
+                        0.2 * size.height, 0, 0, 1);
+    cv::Mat warped, mask;
+    cv::warpPerspective(art, warped, cv::Mat(H), size, cv::INTER_AREA);
+    cv::warpPerspective(cv::Mat(art.size(), CV_8U, cv::Scalar(255)), mask, cv::Mat(H), size, cv::INTER_NEAREST);
+    warped.copyTo(frame, mask);
+    std::vector<std::uint8_t> jpeg;
+    cv::imencode(".jpg", frame, jpeg, {cv::IMWRITE_JPEG_QUALITY, 90});
+    auto r = c.Post("/api/recognize", std::string(jpeg.begin(), jpeg.end()), "image/jpeg");
+    ASSERT_TRUE(r) << size;
+    ASSERT_EQ(r->status, 200) << size << " " << r->body;
+    const Json j = Json::parse(r->body);
+    EXPECT_EQ(j["width"], size.width);
+    EXPECT_EQ(j["height"], size.height);
+    ASSERT_FALSE(j["found"].empty()) << size;
+    EXPECT_EQ(j["found"][0]["id"], "starry");
+    const std::vector<cv::Point2d> corners = {{0, 0}, {art.cols - 1.0, 0}, {art.cols - 1.0, art.rows - 1.0}, {0, art.rows - 1.0}};
+    const Json& outline = j["found"][0]["outline"];
+    ASSERT_EQ(outline.size(), 4u);
+    for (int i = 0; i < 4; ++i) {
+      const cv::Vec3d t = H * cv::Vec3d(corners[i].x, corners[i].y, 1);
+      const double err = std::hypot(outline[i][0].get<double>() - t[0] / t[2], outline[i][1].get<double>() - t[1] / t[2]);
+      EXPECT_LT(err, 0.004 * size.width) << size << " corner " << i;  // 16 px at 12 MP, 32 px at 48 MP
+    }
+  }
+  // A GIF or HEIC upload names its format.
+  const std::string gif = std::string("GIF89a") + std::string("\x10\x00\x10\x00\x00\x00\x00", 7);
+  auto r = c.Post("/api/recognize", gif, "image/gif");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400);
+  EXPECT_NE(r->body.find("GIF images are not supported"), std::string::npos) << r->body;
+}
+
 }  // namespace
 }  // namespace mvkp::serve
