@@ -107,7 +107,8 @@ int RunImportArchive(DbArgs& a) {
   TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
   Timer t;
   std::vector<RowFailure> failed;
-  std::vector<TargetRecord> good;
+  std::vector<TargetRecord> good;  // all or none (without --keep-going)
+  std::size_t imported = 0;
   std::set<std::string> seen;
   for (const auto& e : entries) {
     const std::string where = a.list + ": entry " + std::to_string(e.entry) +
@@ -133,14 +134,17 @@ int RunImportArchive(DbArgs& a) {
     }
     try {
       store.Restore({e.record});  // each its own transaction
-      good.push_back({});
+      ++imported;
     } catch (const Error& x) {
       failed.push_back({where, x.what()});
     }
   }
-  if (!a.keep_going) store.Restore(good);  // all or none
-  keep_db = keep_db || !good.empty();
-  return ImportDone(a, store, good.size(), entries.size(), failed, t.ElapsedMs());
+  if (!a.keep_going) {
+    store.Restore(good);
+    imported = good.size();
+  }
+  keep_db = keep_db || imported > 0;
+  return ImportDone(a, store, imported, entries.size(), failed, t.ElapsedMs());
 }
 
 // A CSV or JSON list: every row is checked (id, metadata, image file) before
