@@ -174,7 +174,10 @@ bool IsTargetArchive(const std::string& path) {
 }
 
 std::vector<ArchiveTarget> ReadTargetArchive(const std::string& path) {
-  const Bytes file = ReadFileBytes(path, std::uint64_t(1) << 40);
+  return ParseTargetArchive(ReadFileBytes(path, std::uint64_t(1) << 40), path);
+}
+
+std::vector<ArchiveTarget> ParseTargetArchive(const Bytes& file, const std::string& path) {
   std::map<std::string, Bytes> files;
   std::size_t pos = 0;
   bool ended = false;

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,9 @@ struct ArchiveTarget {
 // JSON; Error(kIo) if it cannot be read. A damaged target is reported in its
 // ArchiveTarget, so a caller may restore the others.
 std::vector<ArchiveTarget> ReadTargetArchive(const std::string& path);
+
+// The same for an archive's bytes; `name` starts every error message.
+std::vector<ArchiveTarget> ParseTargetArchive(const std::vector<std::uint8_t>& bytes, const std::string& name);
 
 // True if `path` names a target archive by its extension (.tar) or content
 // (a ustar header), e.g. to tell it from a CSV or JSON list.
