@@ -749,13 +749,13 @@ TEST_F(TargetStoreTest, BackupRefusesToOverwriteUnlessForcedAndNeverTheDatabaseI
 // edits its own seed target's title, on its own connection, while the backup
 // copies the file a few pages per step (so writes restart it).
 TEST_F(TargetStoreTest, BackupDuringSixteenConcurrentEditsHoldsEveryEditCommittedBeforeIt) {
-  constexpr int kThreads = 16, kEdits = 24;
+  constexpr int kThreads = 16, kEdits = 12;
   {
     TargetStore store = TargetStore::Create(db_);
     for (int t = 0; t < kThreads; ++t) store.Add(Record("seed-" + std::to_string(t), 200, 5000 + t));
   }
   auto id_of = [](int t, int i) { return "t" + std::to_string(t) + "-" + std::to_string(i); };
-  auto model_of = [](int t, int i) { return Pattern(1500 + 37 * i, 100 * t + i); };
+  auto model_of = [](int t, int i) { return Pattern(30000 + 37 * i, 100 * t + i); };  // ~8 pages each
   auto words_of = [](int t, int i) { return Pattern(120 + i, 7000 + 100 * t + i); };
   struct Edit {
     int thread, index;
@@ -795,14 +795,20 @@ TEST_F(TargetStoreTest, BackupDuringSixteenConcurrentEditsHoldsEveryEditCommitte
   std::vector<Edit> before;
   {
     std::unique_lock<std::mutex> lock(mu);
-    cv.wait(lock, [&] { return committed.size() >= std::size_t(4 * kThreads) || errors > 0; });
+    cv.wait(lock, [&] { return committed.size() >= std::size_t(3 * kThreads) || errors > 0; });
     before = committed;  // every edit here committed before the backup starts
   }
   const std::string out = (dir_ / "backup.db").string();
   BackupOptions o;
-  o.pages_per_step = 4;
+  o.pages_per_step = 1;  // many steps, so that commits land between them
   BackupReport report;
   EXPECT_NO_THROW(report = BackupTargetStore(db_, out, o));
+  {
+    std::lock_guard<std::mutex> lock(mu);  // how much the backup overlapped, for the record
+    RecordProperty("edits_before_backup", int(before.size()));
+    RecordProperty("edits_during_backup", int(committed.size() - before.size()));
+    RecordProperty("backup_restarts", report.restarts);
+  }
   for (auto& th : threads) th.join();
   ASSERT_EQ(errors.load(), 0);
   ASSERT_EQ(committed.size(), std::size_t(kThreads * kEdits));
