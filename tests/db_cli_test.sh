@@ -117,6 +117,22 @@ check "archive --keep-going: two of three restored" test "$(count "$T/new3.db")"
 printf 'not a tar at all, just text' >"$T/junk.tar"
 expect_fail "import a file that is not an archive" "not a usable target archive" "$MVKP" db import "$T/new4.db" "$T/junk.tar"
 
+"$MVKP" db create "$T/empty.db" >/dev/null
+expect_ok "export an empty database" "$MVKP" db export "$T/empty.db" "$T/empty.tar"
+expect_ok "import it: an empty database" "$MVKP" db import "$T/empty2.db" "$T/empty.tar"
+check "the empty restore exists and is empty" test "$(count "$T/empty2.db")" -eq 0
+# A backup while another process adds a target: a whole checked copy, with or without it.
+"$MVKP" db add "$DB" --id during --image "$SAMPLES/building.jpg" >/dev/null 2>&1 &
+adder=$!
+expect_ok "db backup while a db add runs" "$MVKP" db backup "$DB" "$T/during.db"
+wait "$adder"
+check "that backup passes integrity_check" integrity_ok "$T/during.db"
+check "that backup has the earlier targets" $PY -c "
+import sqlite3, sys
+ids = {r[0] for r in sqlite3.connect('$T/during.db').execute('SELECT id FROM targets')}
+sys.exit(0 if {'starry', 'coffee', 'baboon'} <= ids <= {'starry', 'coffee', 'baboon', 'during'} else 1)"
+expect_ok "db remove the concurrent add" "$MVKP" db remove "$DB" during
+
 # Imports name the failing row; --keep-going imports the rest (issue 20).
 KG=$T/kg.db
 expect_ok "db create (keep-going)" "$MVKP" db create "$KG"
@@ -137,6 +153,13 @@ ok = len(err) == 3 and all(any(w in l and r in l for l in err) for w, r in want)
 sys.exit(0 if ok else 1)"
 check "--keep-going: the good rows are imported" test "$(count "$KG")" -eq 2
 check "--keep-going: summary on stdout" grep -q "imported 2 of 5" "$T/out"
+printf '[{"id": "kg-j1", "image": "coffee.jpg"}, {"id": "kg-j2", "image": "nope.jpg"}]' >"$T/list/kg.json"
+run "$MVKP" db import "$KG" "$T/list/kg.json" --keep-going
+check "JSON --keep-going: exit 1, the entry named" $PY -c "
+import sys
+err = open('$T/err').read().splitlines()
+sys.exit(0 if $RC == 1 and len(err) == 1 and 'kg.json: entry 2' in err[0] and 'nope.jpg' in err[0] else 1)"
+check "JSON --keep-going: the good entry imported" test "$(count "$KG")" -eq 3
 
 # A process killed while adding leaves the database readable and consistent.
 for delay in 0.05 0.15 0.3 0.5; do

@@ -88,7 +88,7 @@ int ImportDone(const DbArgs& a, const TargetStore& store, std::size_t imported, 
 // An archive of `db export`: restored with its ids, metadata, added_at and
 // models (nothing is retrained). The archive is read and checked before the
 // database is touched; a missing database is created (and removed again if
-// nothing could be restored).
+// every entry failed).
 int RunImportArchive(DbArgs& a) {
   const std::vector<ArchiveTarget> entries = ReadTargetArchive(a.list);
   std::error_code ec;
@@ -143,7 +143,7 @@ int RunImportArchive(DbArgs& a) {
     store.Restore(good);
     imported = good.size();
   }
-  keep_db = keep_db || imported > 0;
+  keep_db = keep_db || imported > 0 || failed.empty();  // an empty archive restores an empty database
   return ImportDone(a, store, imported, entries.size(), failed, t.ElapsedMs());
 }
 
