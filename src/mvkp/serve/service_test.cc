@@ -479,6 +479,8 @@ TEST_F(ServiceTest, ReplacingAnExhibitsPhotoRetrainsItAndABadOneKeepsTheOld) {
   ASSERT_FALSE(Json::parse(r->body)["found"].empty());
   EXPECT_EQ(Json::parse(r->body)["found"][0]["id"], "starry");
 
+  auto thumb_before = c.Get("/api/exhibits/starry/image?thumb=64");
+  ASSERT_TRUE(thumb_before && thumb_before->status == 200);
   httplib::MultipartFormDataItems form = {{"image", coffee_jpeg, "c.jpg", "image/jpeg"}};
   r = c.Put("/api/exhibits/starry/image", Admin(), form);
   ASSERT_TRUE(r);
@@ -489,6 +491,9 @@ TEST_F(ServiceTest, ReplacingAnExhibitsPhotoRetrainsItAndABadOneKeepsTheOld) {
   EXPECT_TRUE(j.contains("quality"));
   const TargetRecord stored = TargetStore::Open(db).Get("starry", true);
   EXPECT_EQ(stored.image, coffee);
+  auto thumb_after = c.Get("/api/exhibits/starry/image?thumb=64");  // not the cached old one
+  ASSERT_TRUE(thumb_after && thumb_after->status == 200);
+  EXPECT_NE(thumb_after->body, thumb_before->body);
   // Without exhibit "coffee", the coffee frame is now exhibit "starry".
   r = c.Delete("/api/exhibits/coffee", Admin());
   ASSERT_TRUE(r && r->status == 204);
