@@ -195,5 +195,12 @@ import json, sys
 j = json.loads(open('$T/out').read())
 rows = j if isinstance(j, list) else j.get('targets', j)
 sys.exit(0 if any(r['id'] == 'starry' and r['meta'] == {} for r in rows) else 1)"
+expect_ok "db export with that row" "$MVKP" db export "$DB" "$T/deep.tar"
+run "$MVKP" db import "$T/deep.db" "$T/deep.tar" --keep-going
+check "its import names that row (meta too long), restores the others" $PY -c "
+import sys
+err = open('$T/err').read().splitlines()
+sys.exit(0 if $RC == 1 and len(err) == 1 and \"id 'starry'\" in err[0] and 'meta' in err[0] else 1)"
+check "the others restored" test "$(count "$T/deep.db")" -eq $(($(count "$DB") - 1))
 
 cli_finish

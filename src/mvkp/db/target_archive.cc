@@ -212,7 +212,9 @@ std::vector<ArchiveTarget> ParseTargetArchive(const Bytes& file, const std::stri
   if (m == files.end()) Bad(path, std::string("no ") + kManifest + " (not made by `mvkp db export`)");
   JsonLimits lim;
   lim.max_bytes = std::size_t(256) << 20;
-  lim.max_depth = 4 + MetaJsonLimits().max_depth;  // manifest, targets, a target, meta
+  lim.max_depth = 4 + MetaJsonLimits().max_depth;  // manifest, targets, a target, files
+  // A meta stored before the limits may be long: its entry is refused, not the archive.
+  lim.max_string_bytes = lim.max_bytes;
   const Json j = ParseJsonLimited(std::string_view(reinterpret_cast<const char*>(m->second.data()), m->second.size()),
                                   lim, path + ": " + kManifest);
   if (!j.is_object() || j.value("format", "") != kFormat || !j.contains("targets") || !j["targets"].is_array())
