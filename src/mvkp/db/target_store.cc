@@ -668,6 +668,9 @@ BackupReport BackupTargetStore(const std::string& db, const std::string& out, co
   TargetStore::Open(db, TargetStore::Mode::kReadOnly);
   Conn source;
   source.Connect(db, /*ro=*/true);
+  // SQLITE_BUSY comes back to the loop below at once, which sleeps and
+  // retries until options.timeout_s (not SQLite's 5 s per step).
+  source.Check(sqlite3_busy_timeout(source.db, 0));
   std::error_code ec;
   if (fs::exists(out, ec)) {
     Require(!fs::equivalent(db, out, ec), ErrorCode::kIo, what + ": the output is the database itself");
