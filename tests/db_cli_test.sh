@@ -45,14 +45,121 @@ ok = len(j) == 4 and d['starry']['title'] == 'The Starry Night' and d['starry'][
 ok = ok and d['coffee']['title'] == 'Coffee, black' and d['baboon']['year'] == '1970' and d['baboon']['meta'] == {'k': [1, 2]}
 ok = ok and d['starry']['width'] == 400 and d['starry']['added_at'].endswith('Z')
 sys.exit(0 if ok else 1)"
-expect_ok "db export -o" "$MVKP" db export "$DB" -o "$T/export.json"
-check "export holds every target" $PY -c "
+expect_ok "db export without OUT: the metadata as JSON" "$MVKP" db export "$DB"
+cp "$T/out" "$T/export.json"
+check "metadata export holds every target" $PY -c "
 import json, sys
 j = json.load(open('$T/export.json'))
 sys.exit(0 if len(j['targets']) == 4 and j['schema'] >= 1 else 1)"
 expect_ok "db remove" "$MVKP" db remove "$DB" fruits
 check "three left" test "$(count "$DB")" -eq 3
 expect_fail "db remove an absent id" "no target 'fruits'" "$MVKP" db remove "$DB" fruits
+
+# --- Backups that restore (issue 20) -------------------------------------------
+same_rows() { # same_rows DB1 DB2: equal targets (all columns) and encodings
+  $PY -c "
+import sqlite3, sys
+def rows(p):
+    c = sqlite3.connect('file:' + p + '?mode=ro', uri=True)
+    return (c.execute('SELECT * FROM targets ORDER BY id').fetchall(), c.execute('SELECT * FROM encodings ORDER BY id, kind').fetchall())
+a, b = rows('$1'), rows('$2')
+sys.exit(0 if a == b and len(a[0]) > 0 else 1)"
+}
+integrity_ok() { $PY -c "import sqlite3, sys; sys.exit(0 if sqlite3.connect('$1').execute('PRAGMA integrity_check').fetchall() == [('ok',)] else 1)"; }
+expect_ok "db backup" "$MVKP" db backup "$DB" "$T/copy.db"
+check "backup: every row and encoding equal" same_rows "$DB" "$T/copy.db"
+check "backup: integrity_check ok" integrity_ok "$T/copy.db"
+expect_fail "db backup refuses an existing OUT" "already exists" "$MVKP" db backup "$DB" "$T/copy.db"
+expect_ok "db backup --force replaces it" "$MVKP" db backup "$DB" "$T/copy.db" --force
+expect_fail "db backup onto the database itself" "database itself" "$MVKP" db backup "$DB" "$DB" --force
+printf 'hello' >"$T/notdb.db"
+expect_fail "db backup of a non-database" "not an mvkp target database" "$MVKP" db backup "$T/notdb.db" "$T/x.db"
+check "no copy left by a failed backup" test ! -e "$T/x.db"
+
+expect_ok "db export DB OUT.tar" "$MVKP" db export "$DB" "$T/museum.tar"
+check "the archive lists with tar, manifest included" bash -c "tar tf '$T/museum.tar' | grep -qx mvkp-archive.json"
+expect_fail "db export refuses an existing OUT" "already exists" "$MVKP" db export "$DB" "$T/museum.tar"
+expect_ok "db import ARCHIVE into a new database" "$MVKP" db import "$T/restored.db" "$T/museum.tar"
+check "restored: same ids, metadata, added_at, images, models, encodings" same_rows "$DB" "$T/restored.db"
+check "restored: integrity_check ok" integrity_ok "$T/restored.db"
+expect_ok "recognize a frame against the original" "$MVKP" recognize "$DB" "$SAMPLES/coffee.jpg" --json
+cp "$T/out" "$T/rec_a.json"
+expect_ok "recognize the frame against the restored database" "$MVKP" recognize "$T/restored.db" "$SAMPLES/coffee.jpg" --json
+check "same recognitions (ids, outlines, inliers)" $PY -c "
+import json, sys
+def found(p):
+    return [(f['id'], f['outline'], f['inliers']) for f in json.loads(open(p).read().strip().splitlines()[0])['found']]
+a, b = found('$T/rec_a.json'), found('$T/out')
+sys.exit(0 if a == b and a and a[0][0] == 'coffee' else 1)"
+expect_fail "import the archive again: ids exist, named by entry" "entry 1" "$MVKP" db import "$T/restored.db" "$T/museum.tar"
+check "nothing added by the failed re-import" test "$(count "$T/restored.db")" -eq "$(count "$DB")"
+expect_fail "import a metadata-only JSON export" "metadata-only" "$MVKP" db import "$DB" "$T/export.json"
+size=$(stat -c %s "$T/museum.tar")
+head -c $((size / 2)) "$T/museum.tar" >"$T/truncated.tar"
+expect_fail "import a truncated archive" "truncated" "$MVKP" db import "$T/new1.db" "$T/truncated.tar"
+check "no database made by a truncated archive" test ! -e "$T/new1.db"
+expect_fail "import a truncated archive into an existing database" "truncated" "$MVKP" db import "$T/copy.db" "$T/truncated.tar"
+check "the existing database is untouched" same_rows "$DB" "$T/copy.db"
+# One byte of a model changed: its entry is named; nothing is imported.
+$PY -c "
+d = bytearray(open('$T/museum.tar', 'rb').read())
+i = d.index(b'targets/000002/model') + 512 + 100
+d[i] ^= 0x55
+open('$T/damaged.tar', 'wb').write(d)"
+expect_fail "import an archive with a damaged model" "entry 2" "$MVKP" db import "$T/new2.db" "$T/damaged.tar"
+check "no database made by a damaged archive" test ! -e "$T/new2.db"
+run "$MVKP" db import "$T/new3.db" "$T/damaged.tar" --keep-going
+check "archive --keep-going: exit 1, the damaged entry named, the others restored" $PY -c "
+import sys
+err = open('$T/err').read().splitlines()
+sys.exit(0 if $RC == 1 and len(err) == 1 and 'entry 2' in err[0] and 'damaged' in err[0] else 1)"
+check "archive --keep-going: two of three restored" test "$(count "$T/new3.db")" -eq 2
+printf 'not a tar at all, just text' >"$T/junk.tar"
+expect_fail "import a file that is not an archive" "not a usable target archive" "$MVKP" db import "$T/new4.db" "$T/junk.tar"
+
+"$MVKP" db create "$T/empty.db" >/dev/null
+expect_ok "export an empty database" "$MVKP" db export "$T/empty.db" "$T/empty.tar"
+expect_ok "import it: an empty database" "$MVKP" db import "$T/empty2.db" "$T/empty.tar"
+check "the empty restore exists and is empty" test "$(count "$T/empty2.db")" -eq 0
+# A backup while another process adds a target: a whole checked copy, with or without it.
+"$MVKP" db add "$DB" --id during --image "$SAMPLES/building.jpg" >/dev/null 2>&1 &
+adder=$!
+expect_ok "db backup while a db add runs" "$MVKP" db backup "$DB" "$T/during.db"
+wait "$adder"
+check "that backup passes integrity_check" integrity_ok "$T/during.db"
+check "that backup has the earlier targets" $PY -c "
+import sqlite3, sys
+ids = {r[0] for r in sqlite3.connect('$T/during.db').execute('SELECT id FROM targets')}
+sys.exit(0 if {'starry', 'coffee', 'baboon'} <= ids <= {'starry', 'coffee', 'baboon', 'during'} else 1)"
+expect_ok "db remove the concurrent add" "$MVKP" db remove "$DB" during
+
+# Imports name the failing row; --keep-going imports the rest (issue 20).
+KG=$T/kg.db
+expect_ok "db create (keep-going)" "$MVKP" db create "$KG"
+$PY -c "open('$T/list/flat.pgm', 'wb').write(b'P5\n200 200\n255\n' + bytes([128]) * 40000)"
+printf 'id,image,title\nkg-coffee,coffee.jpg,Coffee\nkg-flat,flat.pgm,Flat\nkg-fruits,fruits.jpg,Fruits\n' >"$T/list/flat.csv"
+expect_fail "a textureless image stops the import and names its line" "flat.csv:3" "$MVKP" db import "$KG" "$T/list/flat.csv"
+check "the failed import added nothing" test "$(count "$KG")" -eq 0
+printf 'id,image,title\nkg-coffee,coffee.jpg,Coffee\nkg-flat,flat.pgm,Flat\nkg-ghost,missing.jpg,Ghost\nkg-fruits,fruits.jpg,Fruits\nkg-coffee,coffee.jpg,Again\n' >"$T/list/kg.csv"
+expect_fail "without --keep-going: the first failing row, before any training" "kg.csv:4" "$MVKP" db import "$KG" "$T/list/kg.csv"
+check "still nothing added" test "$(count "$KG")" -eq 0
+run "$MVKP" db import "$KG" "$T/list/kg.csv" --keep-going
+check "--keep-going: exit 1 when rows failed" test "$RC" -eq 1
+check "--keep-going: every failing row named with its line and reason" $PY -c "
+import sys
+err = open('$T/err').read().splitlines()
+want = [('kg.csv:3', 'texture'), ('kg.csv:4', 'missing.jpg'), ('kg.csv:6', 'twice')]
+ok = len(err) == 3 and all(any(w in l and r in l for l in err) for w, r in want)
+sys.exit(0 if ok else 1)"
+check "--keep-going: the good rows are imported" test "$(count "$KG")" -eq 2
+check "--keep-going: summary on stdout" grep -q "imported 2 of 5" "$T/out"
+printf '[{"id": "kg-j1", "image": "coffee.jpg"}, {"id": "kg-j2", "image": "nope.jpg"}]' >"$T/list/kg.json"
+run "$MVKP" db import "$KG" "$T/list/kg.json" --keep-going
+check "JSON --keep-going: exit 1, the entry named" $PY -c "
+import sys
+err = open('$T/err').read().splitlines()
+sys.exit(0 if $RC == 1 and len(err) == 1 and 'kg.json: entry 2' in err[0] and 'nope.jpg' in err[0] else 1)"
+check "JSON --keep-going: the good entry imported" test "$(count "$KG")" -eq 3
 
 # A process killed while adding leaves the database readable and consistent.
 for delay in 0.05 0.15 0.3 0.5; do
@@ -88,5 +195,12 @@ import json, sys
 j = json.loads(open('$T/out').read())
 rows = j if isinstance(j, list) else j.get('targets', j)
 sys.exit(0 if any(r['id'] == 'starry' and r['meta'] == {} for r in rows) else 1)"
+expect_ok "db export with that row" "$MVKP" db export "$DB" "$T/deep.tar"
+run "$MVKP" db import "$T/deep.db" "$T/deep.tar" --keep-going
+check "its import names that row (meta too long), restores the others" $PY -c "
+import sys
+err = open('$T/err').read().splitlines()
+sys.exit(0 if $RC == 1 and len(err) == 1 and \"id 'starry'\" in err[0] and 'meta' in err[0] else 1)"
+check "the others restored" test "$(count "$T/deep.db")" -eq $(($(count "$DB") - 1))
 
 cli_finish

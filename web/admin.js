@@ -1,5 +1,6 @@
 // The museum guide's admin page (/admin): log in with the admin token, list,
-// add, edit and delete exhibits, and show each exhibit's target quality.
+// add, edit and delete exhibits, replace an exhibit's photo (retrained), import
+// many from a CSV with photos or a ZIP, and show each exhibit's target quality.
 // Plain JS; every piece of exhibit data goes into the page as text
 // (textContent, attribute values), never as HTML.
 'use strict';
@@ -229,7 +230,8 @@
     const li = el('li', { class: 'item', 'data-id': x.id });
     const thumb = el('img', {
       class: 'thumb',
-      src: exhibitPath(x.id) + '/image?thumb=' + THUMB,
+      // added_at changes with the photo: a replaced one is not taken from the browser's cache.
+      src: exhibitPath(x.id) + '/image?thumb=' + THUMB + '&v=' + encodeURIComponent(x.added_at || ''),
       alt: x.title || x.id,
       loading: 'lazy',
       width: THUMB / 2,
@@ -255,6 +257,7 @@
     view.append(el('div', { class: 'slot', 'data-quality-for': x.id }, qualityView(quality.get(x.id))));
     const actions = el('div', { class: 'actions' },
       el('button', { type: 'button', class: 'secondary', onclick: () => edit(li, x), text: 'Edit' }),
+      el('button', { type: 'button', class: 'secondary', onclick: (ev) => replacePhoto(li, x, ev.currentTarget), text: 'Replace photo' }),
       el('button', { type: 'button', class: 'danger', onclick: (ev) => remove(x, ev.currentTarget), text: 'Delete' }));
     view.append(actions);
     info.append(view);
@@ -358,6 +361,190 @@
       if (e.status === 404) loadList();
     }
   }
+
+  // A new photo for an exhibit: PUT .../image trains it like an add; if the
+  // server refuses it, the old photo and model stay.
+  function replacePhoto(li, x, button) {
+    const input = el('input', { type: 'file', accept: 'image/jpeg,image/png', hidden: true });
+    li.append(input);
+    input.addEventListener('change', async () => {
+      const f = input.files[0];
+      input.remove();
+      if (!f) return;
+      const fd = new FormData();
+      fd.append('image', f, f.name);
+      busy(button, true, 'Training…');
+      try {
+        const updated = await api('PUT', exhibitPath(x.id) + '/image', fd);
+        if (updated.quality) {
+          updated.quality.added_at = updated.added_at;
+          quality.set(updated.id, updated.quality);
+        }
+        const i = exhibits.findIndex((e) => e.id === x.id);
+        if (i >= 0) exhibits[i] = updated;
+        li.replaceWith(card(updated));
+        say('Replaced the photo of “' + (updated.title || updated.id) + '” and retrained it.', 'ok');
+      } catch (e) {
+        busy(button, false);
+        say('Cannot replace the photo (the old one stays): ' + e.message, 'error');
+        if (e.status === 404) loadList();
+      }
+    });
+    input.click();
+  }
+
+  // ---- bulk import -------------------------------------------------------
+  // A loop over POST /api/exhibits, one row at a time: each row is checked and
+  // trained exactly as a single add, its answer is its progress and its
+  // error, and the server keeps no import state.
+
+  // CSV as `mvkp db import` reads it: a header naming the columns, fields in
+  // double quotes may hold commas and "" for a quote, no line breaks inside.
+  function parseCsv(text) {
+    const rows = [];
+    const lines = text.replace(/^\uFEFF/, '').split('\n');
+    let header = null;
+    lines.forEach((raw, i) => {
+      const line = raw.replace(/\r$/, '');
+      const f = [];
+      let cur = '', quoted = false;
+      for (let k = 0; k < line.length; k++) {
+        const c = line[k];
+        if (quoted) {
+          if (c === '"' && line[k + 1] === '"') { cur += '"'; k++; }
+          else if (c === '"') quoted = false;
+          else cur += c;
+        } else if (c === '"') quoted = true;
+        else if (c === ',') { f.push(cur); cur = ''; }
+        else cur += c;
+      }
+      f.push(cur);
+      if (!header) {
+        header = f.map((h) => h.trim());
+        if (!header.includes('id') || !header.includes('image')) throw new Error('the CSV header needs id and image columns');
+        return;
+      }
+      if (!line.trim()) return;
+      const row = { line: i + 1, unterminated: quoted };
+      header.forEach((h, k) => { row[h] = f[k] === undefined ? '' : f[k]; });
+      rows.push(row);
+    });
+    if (!header) throw new Error('the CSV is empty');
+    return rows;
+  }
+
+  // The entries of a ZIP file (stored or deflated) as name -> Blob.
+  async function unzip(file) {
+    const buf = new DataView(await file.arrayBuffer());
+    let eocd = -1;
+    for (let i = buf.byteLength - 22; i >= Math.max(0, buf.byteLength - 65557); i--) {
+      if (buf.getUint32(i, true) === 0x06054b50) { eocd = i; break; }
+    }
+    if (eocd < 0) throw new Error(file.name + ' is not a ZIP file');
+    const count = buf.getUint16(eocd + 10, true);
+    let p = buf.getUint32(eocd + 16, true);
+    const out = new Map();
+    const dec = new TextDecoder();
+    for (let n = 0; n < count; n++) {
+      if (p + 46 > buf.byteLength || buf.getUint32(p, true) !== 0x02014b50) throw new Error(file.name + ': damaged ZIP directory');
+      const method = buf.getUint16(p + 10, true), size = buf.getUint32(p + 20, true);
+      const nameLen = buf.getUint16(p + 28, true), extra = buf.getUint16(p + 30, true), comment = buf.getUint16(p + 32, true);
+      const local = buf.getUint32(p + 42, true);
+      const name = dec.decode(new Uint8Array(buf.buffer, p + 46, nameLen));
+      p += 46 + nameLen + extra + comment;
+      if (name.endsWith('/')) continue;
+      if (local + 30 > buf.byteLength || buf.getUint32(local, true) !== 0x04034b50) throw new Error(file.name + ': damaged entry ' + name);
+      const start = local + 30 + buf.getUint16(local + 26, true) + buf.getUint16(local + 28, true);
+      if (start + size > buf.byteLength) throw new Error(file.name + ': truncated at ' + name);
+      const data = new Blob([new Uint8Array(buf.buffer, start, size)]);
+      if (method === 0) out.set(name, data);
+      else if (method === 8) out.set(name, await new Response(data.stream().pipeThrough(new DecompressionStream('deflate-raw'))).blob());
+      else throw new Error(file.name + ': ' + name + ' uses an unsupported compression');
+    }
+    return out;
+  }
+
+  let bulkStop = false;
+  $('bulk-stop').addEventListener('click', () => { bulkStop = true; $('bulk-stop').disabled = true; });
+
+  $('bulk-form').addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    const chosen = [...$('bulk-files').files];
+    const files = new Map();  // name (and base name) -> Blob
+    const put = (name, blob) => { files.set(name, blob); files.set(name.split('/').pop(), blob); };
+    let csv = null, csvName = '';
+    let rows;
+    try {
+      for (const f of chosen) {
+        if (/\.zip$/i.test(f.name)) {
+          for (const [name, blob] of await unzip(f)) {
+            if (/\.csv$/i.test(name) && !csv) { csv = blob; csvName = f.name + ': ' + name; } else put(name, blob);
+          }
+        } else if (/\.csv$/i.test(f.name)) { csv = f; csvName = f.name; } else put(f.name, f);
+      }
+      if (!csv) throw new Error('choose a CSV list (with its photos) or a ZIP holding one');
+      rows = parseCsv(await csv.text());
+    } catch (e) {
+      return say('Cannot import: ' + e.message, 'error');
+    }
+    const list = $('bulk-rows');
+    const items = rows.map((r) => {
+      const li = el('li', { class: 'waiting' }, el('span', { class: 'state', text: 'waiting' }),
+        ' line ' + r.line + ' · ', el('code', { text: r.id || '(no id)' }), el('span', { class: 'why' }));
+      return li;
+    });
+    list.replaceChildren(...items);
+    $('bulk-result').hidden = false;
+    const bar = $('bulk-progress');
+    bar.max = Math.max(rows.length, 1);
+    bar.value = 0;
+    const b = $('bulk-button');
+    busy(b, true, 'Importing…');
+    bulkStop = false;
+    $('bulk-stop').hidden = false;
+    $('bulk-stop').disabled = false;
+    let added = 0, failed = 0;
+    const mark = (i, kind, text, why) => {
+      items[i].className = kind;
+      items[i].querySelector('.state').textContent = text;
+      items[i].querySelector('.why').textContent = why ? ' — ' + why : '';
+    };
+    for (let i = 0; i < rows.length && !bulkStop; i++) {
+      const r = rows[i];
+      $('bulk-summary').textContent = csvName + ': row ' + (i + 1) + ' of ' + rows.length + ' (line ' + r.line + ')…';
+      mark(i, 'running', 'training');
+      items[i].scrollIntoView({ block: 'nearest' });
+      const image = files.get(r.image) || files.get(String(r.image).split('/').pop());
+      try {
+        if (r.unterminated) throw new Error('unterminated quoted field (fields cannot span lines)');
+        if (!r.id || !r.image) throw new Error('needs an id and an image');
+        if (!image) throw new Error('photo “' + r.image + '” was not chosen (or is not in the ZIP)');
+        const fd = new FormData();
+        fd.append('image', image, String(r.image).split('/').pop());
+        for (const k of ['id', 'title', 'artist', 'year', 'url']) fd.append(k, (r[k] || '').trim());
+        fd.append('meta', (r.meta || '').trim() || '{}');
+        const x = await api('POST', '/api/exhibits', fd);
+        if (x.quality) {
+          x.quality.added_at = x.added_at;
+          quality.set(x.id, x.quality);
+        }
+        added++;
+        mark(i, 'ok', 'added', x.quality ? 'quality ' + x.quality.score + '/100, ' + x.quality.verdict : '');
+      } catch (e) {
+        failed++;
+        mark(i, 'error', 'failed', e.message);
+        if (e.status === 401) break;
+      }
+      bar.value = i + 1;
+    }
+    const left = rows.length - added - failed;
+    $('bulk-summary').textContent = csvName + ': ' + added + ' added, ' + failed + ' failed' +
+      (left ? ', ' + left + ' not tried (stopped)' : '') + ' of ' + rows.length + ' rows.';
+    $('bulk-stop').hidden = true;
+    busy(b, false);
+    say('Import: ' + added + ' added, ' + failed + ' failed.', failed ? 'error' : 'ok');
+    if (added) loadList();
+  });
 
   // ---- add ---------------------------------------------------------------
 

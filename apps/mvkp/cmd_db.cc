@@ -1,4 +1,5 @@
-// mvkp db: the target database (create, add, import, list, remove, export).
+// mvkp db: the target database (create, add, import, list, remove, export,
+// backup).
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +16,7 @@
 #include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
+#include "mvkp/db/target_archive.h"
 #include "mvkp/db/target_list.h"
 #include "mvkp/db/target_store.h"
 #include "mvkp/model/model.h"
@@ -28,7 +30,8 @@ namespace fs = std::filesystem;
 
 struct DbArgs {
   std::string db, id, image, title, artist, year, url, meta = "{}", list, output;
-  bool json = false;
+  bool json = false, force = false, keep_going = false;
+  double timeout_s = BackupOptions{}.timeout_s;
   TrainOptions train = DbTrainDefaults();
 };
 
@@ -66,27 +69,153 @@ int RunAdd(DbArgs& a) {
   return 0;
 }
 
+// A row of an import that failed: where (LIST:LINE, LIST: entry N, ARCHIVE:
+// entry N) and why.
+struct RowFailure {
+  std::string where, error;
+};
+
+// Ends an import: prints each failed row (stderr), then the summary; exit 1
+// if any row failed.
+int ImportDone(const DbArgs& a, const TargetStore& store, std::size_t imported, std::size_t rows,
+               const std::vector<RowFailure>& failed, double ms) {
+  for (const auto& f : failed) std::fprintf(stderr, "mvkp: error: %s: %s\n", f.where.c_str(), f.error.c_str());
+  std::printf("imported %zu of %zu targets into %s in %.1f s (%zu targets now)%s\n", imported, rows, a.db.c_str(),
+              ms / 1000, store.Count(), failed.empty() ? "" : (", " + std::to_string(failed.size()) + " failed").c_str());
+  return failed.empty() ? 0 : 1;
+}
+
+// An archive of `db export`: restored with its ids, metadata, added_at and
+// models (nothing is retrained). The archive is read and checked before the
+// database is touched; a missing database is created (and removed again if
+// every entry failed).
+int RunImportArchive(DbArgs& a) {
+  const std::vector<ArchiveTarget> entries = ReadTargetArchive(a.list);
+  std::error_code ec;
+  const bool created = !fs::exists(a.db, ec);
+  if (created) TargetStore::Create(a.db);
+  bool keep_db = !created;
+  struct Cleanup {
+    const std::string& db;
+    bool& keep;
+    ~Cleanup() {
+      std::error_code e;
+      if (!keep)
+        for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(db + suffix, e);
+    }
+  } cleanup{a.db, keep_db};
+  TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
+  Timer t;
+  std::vector<RowFailure> failed;
+  std::vector<TargetRecord> good;  // all or none (without --keep-going)
+  std::size_t imported = 0;
+  std::set<std::string> seen;
+  for (const auto& e : entries) {
+    const std::string where = a.list + ": entry " + std::to_string(e.entry) +
+                              (e.record.info.id.empty() ? "" : " (id '" + e.record.info.id + "')");
+    std::string error = e.error;
+    if (error.empty() && !seen.insert(e.record.info.id).second) error = "the id appears twice";
+    if (error.empty() && store.Contains(e.record.info.id)) error = a.db + ": target already exists";
+    if (error.empty()) {
+      try {
+        ValidateTargetInfo(e.record.info, /*new_id=*/false, a.list);
+      } catch (const Error& x) {
+        error = x.what();
+      }
+    }
+    if (!error.empty()) {
+      Require(a.keep_going, ErrorCode::kInvalidArgument, where + ": " + error + " (nothing imported)");
+      failed.push_back({where, error});
+      continue;
+    }
+    if (!a.keep_going) {
+      good.push_back(e.record);
+      continue;
+    }
+    try {
+      store.Restore({e.record});  // each its own transaction
+      ++imported;
+    } catch (const Error& x) {
+      failed.push_back({where, x.what()});
+    }
+  }
+  if (!a.keep_going) {
+    store.Restore(good);
+    imported = good.size();
+  }
+  keep_db = keep_db || imported > 0 || failed.empty();  // an empty archive restores an empty database
+  return ImportDone(a, store, imported, entries.size(), failed, t.ElapsedMs());
+}
+
+// A CSV or JSON list: every row is checked (id, metadata, image file) before
+// any training; then each is trained. Without --keep-going the first failing
+// row stops the import, names its row and nothing is added; with it, every
+// failing row is reported and the others are added.
 int RunImport(DbArgs& a) {
+  if (IsTargetArchive(a.list)) return RunImportArchive(a);
   TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
   // LIST.csv or LIST.json (mvkp/db/target_list.h); image paths relative to the list.
-  const auto list = ReadTargetList(a.list);
+  std::vector<int> rows;
+  const auto list = ReadTargetList(a.list, {}, &rows);
   Require(!list.empty(), ErrorCode::kInvalidArgument, a.list + ": no targets");
+  const bool csv = fs::path(a.list).extension() != ".json" && fs::path(a.list).extension() != ".JSON";
+  std::vector<RowFailure> failed;
+  std::vector<bool> ok(list.size(), true);
+  auto where = [&](std::size_t i) {
+    return a.list + (csv ? ":" : ": entry ") + std::to_string(rows[i]) + " (id '" + list[i].first.id + "')";
+  };
+  auto fail = [&](std::size_t i, const std::string& error) {
+    Require(a.keep_going, ErrorCode::kInvalidArgument, where(i) + ": " + error + " (nothing imported)");
+    failed.push_back({where(i), error});
+    ok[i] = false;
+  };
   std::set<std::string> seen;
-  for (const auto& [info, image] : list) {
-    Require(seen.insert(info.id).second, ErrorCode::kInvalidArgument, a.list + ": id '" + info.id + "' appears twice");
-    Require(!store.Contains(info.id), ErrorCode::kInvalidArgument, a.db + ": target '" + info.id + "' already exists");
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const auto& [info, image] = list[i];
+    std::error_code ec;
+    if (!seen.insert(info.id).second) {
+      fail(i, "the id appears twice in the list");
+    } else if (store.Contains(info.id)) {
+      fail(i, a.db + ": target already exists");
+    } else if (!fs::is_regular_file(image, ec)) {
+      fail(i, image + ": no such image file");
+    } else {
+      try {
+        ValidateTargetInfo(info, /*new_id=*/true, a.list);
+      } catch (const Error& e) {
+        fail(i, e.what());
+      }
+    }
   }
   std::vector<TargetRecord> records;
+  std::vector<std::size_t> index;  // records[k] is list[index[k]]
   Timer t;
   for (std::size_t i = 0; i < list.size(); ++i) {
-    records.push_back(MakeRecord(list[i].first, list[i].second, a.train));
+    if (!ok[i]) continue;
+    try {
+      records.push_back(MakeRecord(list[i].first, list[i].second, a.train));
+      index.push_back(i);
+    } catch (const Error& e) {
+      fail(i, e.what());
+    }
     // The progress bar goes to stderr (only on a terminal).
     Progress("import: target", int(i + 1), int(list.size()));
   }
-  store.AddAll(records);  // all or none
-  std::printf("imported %zu targets into %s in %.1f s (%zu targets now)\n", records.size(), a.db.c_str(),
-              t.ElapsedMs() / 1000, store.Count());
-  return 0;
+  std::size_t imported = 0;
+  if (!a.keep_going) {
+    store.AddAll(records);  // all or none
+    imported = records.size();
+  } else {
+    for (std::size_t k = 0; k < records.size(); ++k) {
+      try {
+        store.Add(records[k]);
+        ++imported;
+      } catch (const Error& e) {
+        failed.push_back({where(index[k]), e.what()});
+      }
+    }
+  }
+  return ImportDone(a, store, imported, list.size(), failed, t.ElapsedMs());
 }
 
 int RunList(DbArgs& a) {
@@ -113,24 +242,36 @@ int RunRemove(DbArgs& a) {
 }
 
 int RunExport(DbArgs& a) {
+  if (!a.output.empty()) {
+    Timer t;
+    const std::size_t n = ExportTargetArchive(a.db, a.output, a.force);
+    std::printf("exported %zu targets (metadata, images, models) to %s in %.1f s\n", n, a.output.c_str(),
+                t.ElapsedMs() / 1000);
+    return 0;
+  }
+  // No OUT: the metadata as JSON on stdout (not a backup).
   const TargetStore store = TargetStore::Open(a.db);
   nlohmann::json j = {{"database", a.db}, {"schema", store.schema_version()}, {"targets", nlohmann::json::array()}};
   for (const auto& i : store.List()) j["targets"].push_back(InfoJson(i));
-  if (a.output.empty()) {
-    std::cout << j.dump(1) << std::endl;
-  } else {
-    std::ofstream out(a.output);
-    out << j.dump(1) << "\n";
-    Require(bool(out), ErrorCode::kIo, a.output + ": cannot write");
-    std::printf("exported %zu targets to %s\n", j["targets"].size(), a.output.c_str());
-  }
+  std::cout << j.dump(1) << std::endl;
+  return 0;
+}
+
+int RunBackup(DbArgs& a) {
+  BackupOptions o;
+  o.overwrite = a.force;
+  o.timeout_s = a.timeout_s;
+  Timer t;
+  const BackupReport r = BackupTargetStore(a.db, a.output, o);
+  std::printf("backed up %s to %s: %zu targets, %zu pages, integrity ok, %.1f s\n", a.db.c_str(), a.output.c_str(),
+              r.targets, r.pages, t.ElapsedMs() / 1000);
   return 0;
 }
 
 }  // namespace
 
 void RegisterDb(CLI::App& app, int* code) {
-  auto* db = app.add_subcommand("db", "Target database: create, add, import, list, remove, export");
+  auto* db = app.add_subcommand("db", "Target database: create, add, import, list, remove, export, backup");
   db->require_subcommand(1);
   auto a = std::make_shared<DbArgs>();
   auto* c = db->add_subcommand("create", "Create an empty target database");
@@ -149,9 +290,13 @@ void RegisterDb(CLI::App& app, int* code) {
   AddTrainOptions(add, &a->train);
   add->callback([a, code] { *code = RunAdd(*a); });
 
-  auto* imp = db->add_subcommand("import", "Train and add every target of a CSV or JSON list (all or none)");
-  imp->add_option("DB", a->db, "database file")->required();
-  imp->add_option("LIST", a->list, "LIST.csv (id,image,title,artist,year,url,meta) or LIST.json")->required();
+  auto* imp = db->add_subcommand(
+      "import", "Train and add every target of a CSV or JSON list, or restore an export archive (all or none)");
+  imp->add_option("DB", a->db, "database file (created for an archive if missing)")->required();
+  imp->add_option("LIST", a->list, "LIST.csv (id,image,title,artist,year,url,meta), LIST.json or ARCHIVE.tar")
+      ->required();
+  imp->add_flag("--keep-going", a->keep_going,
+                "import the rows that work, report every failing row (exit 1 if any failed)");
   AddTrainOptions(imp, &a->train);
   imp->callback([a, code] { *code = RunImport(*a); });
 
@@ -165,10 +310,20 @@ void RegisterDb(CLI::App& app, int* code) {
   rm->add_option("ID", a->id, "target id")->required();
   rm->callback([a, code] { *code = RunRemove(*a); });
 
-  auto* ex = db->add_subcommand("export", "Print (or write) every target's metadata as JSON");
+  auto* ex = db->add_subcommand(
+      "export", "Write an archive (tar: metadata, images, models) that `db import` restores; without OUT, print the metadata");
   ex->add_option("DB", a->db, "database file")->required();
-  ex->add_option("-o,--output", a->output, "write here instead of stdout");
+  ex->add_option("OUT,-o,--output", a->output, "archive to write (e.g. museum.tar)");
+  ex->add_flag("--force", a->force, "replace an existing OUT");
   ex->callback([a, code] { *code = RunExport(*a); });
+
+  auto* bk = db->add_subcommand("backup", "Copy a live database consistently (SQLite online backup), integrity-checked");
+  bk->add_option("DB", a->db, "database file (a server may be writing it)")->required();
+  bk->add_option("OUT", a->output, "copy to write")->required();
+  bk->add_flag("--force", a->force, "replace an existing OUT");
+  bk->add_option("--timeout", a->timeout_s, "give up after this many seconds")->capture_default_str()->check(
+      CLI::PositiveNumber);
+  bk->callback([a, code] { *code = RunBackup(*a); });
 }
 
 }  // namespace mvkp::cli

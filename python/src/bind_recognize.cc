@@ -235,6 +235,24 @@ void BindRecognize(py::module_& m) {
           },
           py::arg("id"), "The target's trained Model.")
       .def(
+          "backup",
+          [](PyDatabase& d, const std::string& out, bool overwrite, double timeout_s) {
+            d.get();  // raises if closed
+            BackupOptions o;
+            o.overwrite = overwrite;
+            o.timeout_s = timeout_s;
+            BackupReport r;
+            {
+              py::gil_scoped_release release;
+              r = BackupTargetStore(d.path, out, o);
+            }
+            return r.targets;
+          },
+          py::arg("out"), py::kw_only(), py::arg("overwrite") = false, py::arg("timeout_s") = BackupOptions{}.timeout_s,
+          "Copies the database to `out` while others may write it, as `mvkp db backup` (SQLite online backup, "
+          "integrity-checked, renamed into place). Returns the number of targets copied. IoError if `out` exists "
+          "(unless overwrite=True) or on a timeout.")
+      .def(
           "image_bytes",
           [](PyDatabase& d, const std::string& id) {
             const TargetRecord r = d.get().Get(id, true);

@@ -41,3 +41,18 @@ def test_database_roundtrip(tmp_path, target):
     with mvkp.Database(path, writable=True) as rw:
         assert rw.remove("baboon") and not rw.remove("baboon")
         assert len(rw) == 1
+
+
+def test_database_backup(tmp_path, target):
+    path, out = str(tmp_path / "g.db"), str(tmp_path / "copy.db")
+    with mvkp.Database.create(path) as db:
+        db.add("starry", target, title="The Starry Night", views=40)
+        assert db.backup(out) == 1
+        with pytest.raises(mvkp.IoError, match="already exists"):
+            db.backup(out)
+        assert db.backup(out, overwrite=True) == 1
+    with mvkp.Database(out) as copy:
+        assert copy.ids() == ["starry"] and copy.info("starry").title == "The Starry Night"
+        assert copy.image_bytes("starry") == mvkp.Database(path).image_bytes("starry")
+    with pytest.raises(ValueError, match="closed"):
+        db.backup(str(tmp_path / "x.db"))

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# CTest web_e2e: the museum-guide web client in a real browser (browser_test.mjs).
+# CTest web_e2e: the museum-guide web client in a real browser (browser_test.mjs);
+# web_admin_e2e: the admin page (run.sh admin_test.mjs).
 # Installs what it needs when missing: Debian's chromium (apt, sudo when not root) and
 # playwright-core as pinned in package-lock.json (npm ci into tests/e2e/node_modules;
 # no browser download). Env: MVKP=<mvkp binary>, SAMPLES=<repo>/samples; optional OUT
@@ -26,4 +27,4 @@ if [ ! -f "$here/node_modules/playwright-core/package.json" ]; then
   (cd "$here" && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --no-audit --no-fund)
 fi
 
-exec node "$here/browser_test.mjs"
+exec node "$here/${1:-browser_test.mjs}"  # or another test script, e.g. admin_test.mjs

@@ -31,11 +31,14 @@ void CheckCount(std::size_t n, const TargetListLimits& limits, const std::string
 }
 
 std::vector<TargetListEntry> ParseJson(std::string_view text, const std::string& name,
-                                       const TargetListLimits& limits) {
+                                       const TargetListLimits& limits, std::vector<int>* rows) {
   JsonLimits jl;
   jl.max_bytes = limits.max_bytes;
   jl.max_depth = 2 + MetaJsonLimits().max_depth;  // the array, an entry, then its meta
   const Json j = ParseJsonLimited(text, jl, name);
+  if (j.is_object() && j.contains("targets") && j.contains("database"))
+    Bad(name + ": a metadata-only export of an older `mvkp db export` (no images, no models) cannot be "
+               "restored; export the database again with `mvkp db export DB OUT.tar` and import that");
   if (!j.is_array()) Bad(name + ": expected a JSON array of targets");
   CheckCount(j.size(), limits, name);
   std::vector<TargetListEntry> out;
@@ -73,6 +76,7 @@ std::vector<TargetListEntry> ParseJson(std::string_view text, const std::string&
       CheckMeta(info.meta, where);  // its size and strings, as the store will see them
     }
     out.emplace_back(std::move(info), image);
+    if (rows) rows->push_back(n);
   }
   return out;
 }
@@ -109,7 +113,7 @@ std::vector<std::string> SplitCsv(std::string_view line, const std::string& wher
 }
 
 std::vector<TargetListEntry> ParseCsv(std::string_view text, const std::string& name,
-                                      const TargetListLimits& limits) {
+                                      const TargetListLimits& limits, std::vector<int>* rows) {
   if (text.size() > limits.max_bytes)
     Bad(name + ": " + std::to_string(text.size()) + " bytes, at most " + std::to_string(limits.max_bytes));
   if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // a UTF-8 byte order mark (spreadsheets)
@@ -151,6 +155,7 @@ std::vector<TargetListEntry> ParseCsv(std::string_view text, const std::string& 
     }
     CheckCount(out.size() + 1, limits, name);
     out.emplace_back(std::move(info), image);
+    if (rows) rows->push_back(no);
   }
   if (header) Bad(name + ": empty list");
   return out;
@@ -159,11 +164,13 @@ std::vector<TargetListEntry> ParseCsv(std::string_view text, const std::string& 
 }  // namespace
 
 std::vector<TargetListEntry> ParseTargetList(std::string_view text, TargetListFormat format, const std::string& name,
-                                             const TargetListLimits& limits) {
-  return format == TargetListFormat::kJson ? ParseJson(text, name, limits) : ParseCsv(text, name, limits);
+                                             const TargetListLimits& limits, std::vector<int>* rows) {
+  if (rows) rows->clear();
+  return format == TargetListFormat::kJson ? ParseJson(text, name, limits, rows) : ParseCsv(text, name, limits, rows);
 }
 
-std::vector<TargetListEntry> ReadTargetList(const std::string& path, const TargetListLimits& limits) {
+std::vector<TargetListEntry> ReadTargetList(const std::string& path, const TargetListLimits& limits,
+                                            std::vector<int>* rows) {
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   if (ext != ".csv" && ext != ".json") Bad(path + ": expected a .csv or .json list");
@@ -175,7 +182,8 @@ std::vector<TargetListEntry> ReadTargetList(const std::string& path, const Targe
     Bad(path + ": " + std::to_string(size) + " bytes, at most " + std::to_string(limits.max_bytes));
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   Require(!in.bad(), ErrorCode::kIo, path + ": cannot read list");
-  auto list = ParseTargetList(text, ext == ".json" ? TargetListFormat::kJson : TargetListFormat::kCsv, path, limits);
+  auto list =
+      ParseTargetList(text, ext == ".json" ? TargetListFormat::kJson : TargetListFormat::kCsv, path, limits, rows);
   const fs::path base = fs::path(path).parent_path();
   for (auto& [info, image] : list)
     if (fs::path(image).is_relative()) image = (base / image).string();

@@ -43,14 +43,19 @@ using TargetListEntry = std::pair<TargetInfo, std::string>;
 // message, which names the line (CSV) or entry (JSON, from 1) at fault.
 // Throws Error(kInvalidArgument) for a syntax error, a missing id or image,
 // an invalid meta, or a list over the limits. An empty list (a header, or
-// []) is valid and gives no entries.
+// []) is valid and gives no entries. A metadata-only export of older `mvkp db
+// export` (an object with "targets") is refused with what to do instead.
+// `rows`, if given, receives each entry's CSV line or JSON entry number (from
+// 1), for messages about one entry later (e.g. its training failed).
 std::vector<TargetListEntry> ParseTargetList(std::string_view text, TargetListFormat format,
-                                             const std::string& name, const TargetListLimits& limits = {});
+                                             const std::string& name, const TargetListLimits& limits = {},
+                                             std::vector<int>* rows = nullptr);
 
 // Reads a list file, its format by extension (.csv or .json, any case), and
 // resolves relative image paths against the list's folder. Throws Error(kIo)
 // when it cannot be read, Error(kInvalidArgument) for another extension and
 // as ParseTargetList.
-std::vector<TargetListEntry> ReadTargetList(const std::string& path, const TargetListLimits& limits = {});
+std::vector<TargetListEntry> ReadTargetList(const std::string& path, const TargetListLimits& limits = {},
+                                            std::vector<int>* rows = nullptr);
 
 }  // namespace mvkp

@@ -493,6 +493,41 @@ void TargetStore::AddAll(const std::vector<TargetRecord>& records) {
   txn.Commit();
 }
 
+void TargetStore::Restore(const std::vector<TargetRecord>& records) {
+  impl_->RequireWritable();
+  for (const auto& r : records) {
+    ValidateRecord(impl_->path, r);
+    Require(!r.info.added_at.empty(), ErrorCode::kInvalidArgument,
+            impl_->path + ": target '" + r.info.id + "': restore needs added_at");
+  }
+  WriteTxn txn(*impl_);
+  for (const auto& r : records) impl_->Insert(r, r.info.added_at);
+  txn.Commit();
+}
+
+bool TargetStore::ReplaceImage(const TargetRecord& r) {
+  impl_->RequireWritable();
+  Require(!r.model.empty(), ErrorCode::kInvalidArgument, impl_->path + ": target '" + r.info.id + "': empty model");
+  Require(r.info.width >= 0 && r.info.height >= 0, ErrorCode::kInvalidArgument,
+          impl_->path + ": target '" + r.info.id + "': negative image size");
+  const std::string now = NowUtcIso8601();
+  WriteTxn txn(*impl_);
+  Stmt st(*impl_, "UPDATE targets SET width = ?2, height = ?3, model = ?4, image = ?5, added_at = ?6 WHERE id = ?1");
+  st.Text(1, r.info.id).Int(2, r.info.width).Int(3, r.info.height).Blob(4, r.model).Blob(5, r.image).Text(6, now);
+  st.Step();
+  if (sqlite3_changes(impl_->db) == 0) return false;  // rolled back (nothing written)
+  Stmt del(*impl_, "DELETE FROM encodings WHERE id = ?1");
+  del.Text(1, r.info.id);
+  del.Step();
+  for (const auto& [kind, data] : r.encodings) {
+    Stmt e(*impl_, "INSERT INTO encodings(id, kind, data) VALUES (?1, ?2, ?3)");
+    e.Text(1, r.info.id).Text(2, kind).Blob(3, data);
+    e.Step();
+  }
+  txn.Commit();
+  return true;
+}
+
 bool TargetStore::Remove(const std::string& id) {
   impl_->RequireWritable();
   WriteTxn txn(*impl_);
@@ -568,6 +603,15 @@ std::vector<std::pair<TargetInfo, std::vector<std::uint8_t>>> TargetStore::LoadE
   return out;
 }
 
+std::vector<std::pair<std::string, std::vector<std::uint8_t>>> TargetStore::Encodings(const std::string& id) const {
+  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> out;
+  if (impl_->version < 2) return out;
+  Stmt st(*impl_, "SELECT kind, data FROM encodings WHERE id = ?1 ORDER BY kind");
+  st.Text(1, id);
+  while (st.Step()) out.emplace_back(st.ColText(0), st.ColBlob(1));
+  return out;
+}
+
 std::vector<TargetRecord> TargetStore::LoadAll() const {
   Stmt st(*impl_, (std::string("SELECT ") + kInfoColumns + ", model FROM targets ORDER BY id").c_str());
   std::vector<TargetRecord> out;
@@ -578,6 +622,159 @@ std::vector<TargetRecord> TargetStore::LoadAll() const {
     out.push_back(std::move(r));
   }
   return out;
+}
+
+// --- online backup ---------------------------------------------------------
+
+void BackupOptions::Check() const {
+  Require(pages_per_step > 0, ErrorCode::kInvalidArgument, "backup: pages_per_step must be positive");
+  Require(busy_sleep_ms >= 0, ErrorCode::kInvalidArgument, "backup: busy_sleep_ms must not be negative");
+  Require(timeout_s > 0, ErrorCode::kInvalidArgument, "backup: timeout_s must be positive");
+  Require(restarts_before_one_step >= 0, ErrorCode::kInvalidArgument,
+          "backup: restarts_before_one_step must not be negative");
+}
+
+namespace {
+
+// The temporary copy beside `out`: removed (with its journals) unless kept.
+struct TempCopy {
+  std::string path;
+  bool keep = false;
+  ~TempCopy() {
+    if (keep || path.empty()) return;
+    std::error_code ec;
+    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) std::filesystem::remove(path + suffix, ec);
+  }
+};
+
+void SyncPath(const std::string& path, bool directory, const std::string& what) {
+  const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDWR) | O_CLOEXEC);
+  Require(fd >= 0, ErrorCode::kIo, what + ": cannot open " + path + " to sync: " + std::strerror(errno));
+  const int rc = ::fsync(fd);
+  const int err = errno;
+  ::close(fd);
+  Require(rc == 0, ErrorCode::kIo, what + ": cannot sync " + path + ": " + std::strerror(err));
+}
+
+}  // namespace
+
+BackupReport BackupTargetStore(const std::string& db, const std::string& out, const BackupOptions& options) {
+  namespace fs = std::filesystem;
+  options.Check();
+  const std::string what = out + ": backup";
+  Require(!out.empty(), ErrorCode::kInvalidArgument, "backup: empty output path");
+  // Ours and readable (throws as Open does), then a connection of our own to
+  // copy from (a write through any other connection restarts the copy).
+  TargetStore::Open(db, TargetStore::Mode::kReadOnly);
+  Conn source;
+  source.Connect(db, /*ro=*/true);
+  // SQLITE_BUSY comes back to the loop below at once, which sleeps and
+  // retries until options.timeout_s (not SQLite's 5 s per step).
+  source.Check(sqlite3_busy_timeout(source.db, 0));
+  std::error_code ec;
+  if (fs::exists(out, ec)) {
+    Require(!fs::equivalent(db, out, ec), ErrorCode::kIo, what + ": the output is the database itself");
+    Require(options.overwrite, ErrorCode::kIo, what + ": already exists (give --force to replace it)");
+    Require(fs::is_regular_file(out, ec), ErrorCode::kIo, what + ": exists and is not a regular file");
+  }
+  // A stale journal of an earlier file named `out` would be replayed into the
+  // copy (an empty one, as a read-only reader of a copy leaves, is harmless).
+  for (const char* suffix : {"-wal", "-journal"}) {
+    struct stat st {};
+    Require(::lstat((out + suffix).c_str(), &st) != 0 || (S_ISREG(st.st_mode) && st.st_size == 0), ErrorCode::kIo,
+            what + ": a stale " + out + suffix + " exists; remove it first");
+  }
+
+  TempCopy tmp;
+  {
+    const fs::path dir = fs::path(out).parent_path();
+    std::string name = ".";
+    name += fs::path(out).filename().string();
+    name += ".tmp-XXXXXX";
+    std::string templ = ((dir.empty() ? fs::path(".") : dir) / name).string();
+    const int fd = ::mkstemp(templ.data());
+    Require(fd >= 0, ErrorCode::kIo, what + ": cannot create a temporary file beside it: " + std::strerror(errno));
+    ::close(fd);
+    ::chmod(templ.c_str(), 0644);
+    tmp.path = templ;
+  }
+
+  BackupReport report;
+  {
+    Conn dest;
+    dest.Connect(tmp.path, /*ro=*/false);
+    sqlite3_backup* b = sqlite3_backup_init(dest.db, "main", source.db, "main");
+    if (!b) dest.Fail(sqlite3_extended_errcode(dest.db));
+    const auto start = std::chrono::steady_clock::now();
+    int last_remaining = -1;
+    int rc = SQLITE_OK;
+    for (;;) {
+      const bool one_step = report.restarts >= options.restarts_before_one_step;
+      rc = sqlite3_backup_step(b, one_step ? -1 : options.pages_per_step);
+      if (rc == SQLITE_DONE) break;
+      const int primary = rc & 0xff;
+      if (rc == SQLITE_OK || primary == SQLITE_BUSY || primary == SQLITE_LOCKED) {
+        if (rc == SQLITE_OK) {
+          ++report.steps;
+          const int remaining = sqlite3_backup_remaining(b);
+          if (last_remaining >= 0 && remaining > last_remaining) ++report.restarts;  // the source changed
+          last_remaining = remaining;
+        } else {
+          ++report.busy_retries;
+        }
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (s > options.timeout_s) {
+          sqlite3_backup_finish(b);
+          throw Error(ErrorCode::kIo, what + ": timed out after " + std::to_string(int(options.timeout_s)) +
+                                          " s (the database stayed busy: " + sqlite3_errstr(rc) + ")");
+        }
+        if (rc != SQLITE_OK) ::usleep(useconds_t(options.busy_sleep_ms) * 1000);
+        continue;
+      }
+      break;  // an error
+    }
+    report.pages = std::size_t(sqlite3_backup_pagecount(b));
+    const int fin = sqlite3_backup_finish(b);
+    if (rc != SQLITE_DONE) throw Error(ErrorCode::kIo, what + ": " + sqlite3_errstr(rc) + " while copying " + db);
+    if (fin != SQLITE_OK) dest.Fail(fin);
+    // The copy must be whole and ours before it takes the name.
+    {
+      Stmt check(dest, "PRAGMA integrity_check");
+      std::string problems;
+      while (check.Step()) {
+        const std::string row = check.ColText(0);
+        if (row != "ok") problems += (problems.empty() ? "" : "; ") + row;
+      }
+      Require(problems.empty(), ErrorCode::kIo, what + ": the copy fails PRAGMA integrity_check: " + problems.substr(0, 500));
+    }
+    Require(dest.PragmaInt("PRAGMA application_id") == kApplicationId, ErrorCode::kIo,
+            what + ": the copy is not an mvkp target database");
+    {
+      Stmt n(dest, "SELECT count(*) FROM targets");
+      n.Step();
+      report.targets = std::size_t(sqlite3_column_int64(n.st, 0));
+    }
+    // Fold a WAL the checks may have opened back into the file.
+    sqlite3_exec(dest.db, "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
+  }  // closed: the copy is one file now
+  for (const char* suffix : {"-wal", "-shm"}) fs::remove(tmp.path + suffix, ec);
+  SyncPath(tmp.path, false, what);
+  if (options.overwrite) {
+    Require(::rename(tmp.path.c_str(), out.c_str()) == 0, ErrorCode::kIo,
+            what + ": cannot rename the copy into place: " + std::strerror(errno));
+  } else {
+    // link() refuses an existing name atomically (no check-then-rename race).
+    if (::link(tmp.path.c_str(), out.c_str()) != 0) {
+      const int err = errno;
+      throw Error(ErrorCode::kIo, what + (err == EEXIST ? ": already exists (give --force to replace it)"
+                                                        : ": cannot move the copy into place: " + std::string(std::strerror(err))));
+    }
+    ::unlink(tmp.path.c_str());
+  }
+  tmp.keep = true;
+  const fs::path dir = fs::path(out).parent_path();
+  SyncPath(dir.empty() ? "." : dir.string(), true, what);
+  return report;
 }
 
 }  // namespace mvkp

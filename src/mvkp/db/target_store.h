@@ -60,6 +60,39 @@ void ValidateTargetInfo(const TargetInfo& info, bool new_id, const std::string& 
 // second, e.g. "2026-12-03T04:05:06Z".
 std::string NowUtcIso8601();
 
+// How BackupTargetStore copies a live database.
+struct BackupOptions {
+  int pages_per_step = 1024;  // pages per sqlite3_backup_step (4 MiB at 4 KiB pages)
+  int busy_sleep_ms = 20;     // wait after SQLITE_BUSY / SQLITE_LOCKED, then retry
+  double timeout_s = 60;      // give up with Error(kIo) after this long
+  // A write by another connection between steps restarts the copy; after this
+  // many restarts the rest is copied in one step (one WAL read snapshot, which
+  // does not block writers), so a busy server cannot starve a backup.
+  int restarts_before_one_step = 2;
+  bool overwrite = false;  // replace an existing `out` (else Error(kIo))
+  // Throws Error(kInvalidArgument) naming the field out of range.
+  void Check() const;
+};
+
+struct BackupReport {
+  std::size_t pages = 0;    // pages in the copy
+  int steps = 0;            // sqlite3_backup_step calls that copied pages
+  int busy_retries = 0;     // steps retried after SQLITE_BUSY / SQLITE_LOCKED
+  int restarts = 0;         // copies restarted because the source changed
+  std::size_t targets = 0;  // targets in the copy
+};
+
+// A consistent copy of the target database `db` at `out`, taken while other
+// connections (a server, `mvkp db`) read and write it, with SQLite's online
+// backup API: every transaction committed before the call is in the copy and
+// every transaction is wholly in it or wholly not. The copy goes to a
+// temporary file beside `out`, passes PRAGMA integrity_check, is synced and
+// only then renamed to `out`, so `out` is either absent, the old file, or a
+// whole checked copy. Throws Error(kIo) when `out` exists (unless
+// options.overwrite) or is `db` itself, on a timeout or a write error, and as
+// TargetStore::Open for a `db` that is not a target database.
+BackupReport BackupTargetStore(const std::string& db, const std::string& out, const BackupOptions& options = {});
+
 class TargetStore {
  public:
   enum class Mode { kReadOnly, kReadWrite };
@@ -91,6 +124,14 @@ class TargetStore {
   void Add(const TargetRecord& record);
   // Adds all or none (one transaction), e.g. for a bulk import.
   void AddAll(const std::vector<TargetRecord>& records);
+  // As AddAll, but keeps each record's added_at (which must be set): a
+  // restore from an archive (`mvkp db export`) gives the same rows.
+  void Restore(const std::vector<TargetRecord>& records);
+  // Replaces a target's image, size, model and encodings (`record.info.id`
+  // names it; its other metadata stays) in one transaction and sets added_at
+  // to now: it dates the image, and caches of thumbnails and quality reports
+  // key on it. False if there is no such id.
+  bool ReplaceImage(const TargetRecord& record);
   // One transaction. Returns false if there was no such id.
   bool Remove(const std::string& id);
   // Replaces the metadata (not the model); false if there is no such id.
@@ -108,6 +149,8 @@ class TargetStore {
   // The targets that have an encoding of `kind`, with it, ordered by id (none
   // from a version-1 file opened read-only).
   std::vector<std::pair<TargetInfo, std::vector<std::uint8_t>>> LoadEncodings(const std::string& kind) const;
+  // Every encoding of one target (kind, bytes), ordered by kind.
+  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> Encodings(const std::string& id) const;
 
  private:
   struct Impl;

@@ -7,7 +7,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <map>
+#include <mutex>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -686,6 +690,154 @@ TEST_F(TargetStoreTest, SecondWriterWaitsForTheFirst) {
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
   EXPECT_GT(waited, 0.5);
   EXPECT_EQ(store.Count(), 1u);
+}
+
+TEST_F(TargetStoreTest, RestoreKeepsAddedAtAndReplaceImageSwapsModelAndEncodings) {
+  TargetStore store = TargetStore::Create(db_);
+  TargetRecord r = Record("a");
+  r.info.added_at = "2001-02-03T04:05:06Z";
+  r.encodings = {{"words", Pattern(50, 7)}, {"quality", Pattern(20, 8)}};
+  store.Restore({r});
+  EXPECT_EQ(store.Get("a").info.added_at, "2001-02-03T04:05:06Z");
+  EXPECT_EQ(store.Encodings("a"), (std::vector<std::pair<std::string, std::vector<std::uint8_t>>>{
+                                      {"quality", Pattern(20, 8)}, {"words", Pattern(50, 7)}}));
+  TargetRecord no_date = Record("b");
+  ExpectError([&] { store.Restore({no_date}); }, ErrorCode::kInvalidArgument, "added_at");
+  EXPECT_FALSE(store.Contains("b"));
+
+  TargetRecord n = Record("a", 500, 9, 200);
+  n.info.title = "ignored";
+  n.info.width = 100;
+  n.info.height = 50;
+  n.encodings = {{"words", Pattern(30, 10)}};
+  ASSERT_TRUE(store.ReplaceImage(n));
+  const TargetRecord got = store.Get("a");
+  EXPECT_EQ(got.model, n.model);
+  EXPECT_EQ(got.image, n.image);
+  EXPECT_EQ(got.info.width, 100);
+  EXPECT_EQ(got.info.title, "Title of a");  // metadata stays
+  EXPECT_NE(got.info.added_at, "2001-02-03T04:05:06Z");
+  EXPECT_EQ(store.Encodings("a").size(), 1u);
+  n.info.id = "ghost";
+  EXPECT_FALSE(store.ReplaceImage(n));
+  EXPECT_FALSE(store.Contains("ghost"));
+}
+
+TEST_F(TargetStoreTest, BackupRefusesToOverwriteUnlessForcedAndNeverTheDatabaseItself) {
+  TargetStore::Create(db_).Add(Record("a"));
+  const std::string out = (dir_ / "copy.db").string();
+  EXPECT_EQ(BackupTargetStore(db_, out).targets, 1u);
+  TargetStore::Open(db_, TargetStore::Mode::kReadWrite).Add(Record("b", 1000, 2));
+  ExpectError([&] { BackupTargetStore(db_, out); }, ErrorCode::kIo, "already exists");
+  EXPECT_EQ(TargetStore::Open(out).Count(), 1u);  // the old copy is intact
+  BackupOptions force;
+  force.overwrite = true;
+  EXPECT_EQ(BackupTargetStore(db_, out, force).targets, 2u);
+  EXPECT_EQ(TargetStore::Open(out).Count(), 2u);
+  ExpectError([&] { BackupTargetStore(db_, db_, force); }, ErrorCode::kIo, "the database itself");
+  EXPECT_EQ(TargetStore::Open(db_).Count(), 2u);
+  ExpectError([&] { BackupTargetStore((dir_ / "none.db").string(), (dir_ / "x.db").string()); }, ErrorCode::kIo,
+              "no such database");
+  EXPECT_FALSE(fs::exists(dir_ / "x.db"));
+  for (const auto& e : fs::directory_iterator(dir_))  // no temporary files left behind
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
+// Issue 20: "A backup taken during 16 concurrent admin edits restores to an
+// integrity-checked database holding every committed edit". Each thread adds
+// targets (a row and its encoding: two statements in one transaction) and
+// edits its own seed target's title, on its own connection, while the backup
+// copies the file a few pages per step (so writes restart it).
+TEST_F(TargetStoreTest, BackupDuringSixteenConcurrentEditsHoldsEveryEditCommittedBeforeIt) {
+  constexpr int kThreads = 16, kEdits = 12;
+  {
+    TargetStore store = TargetStore::Create(db_);
+    for (int t = 0; t < kThreads; ++t) store.Add(Record("seed-" + std::to_string(t), 200, 5000 + t));
+  }
+  auto id_of = [](int t, int i) { return "t" + std::to_string(t) + "-" + std::to_string(i); };
+  auto model_of = [](int t, int i) { return Pattern(30000 + 37 * i, 100 * t + i); };  // ~8 pages each
+  auto words_of = [](int t, int i) { return Pattern(120 + i, 7000 + 100 * t + i); };
+  struct Edit {
+    int thread, index;
+  };
+  std::mutex mu;
+  std::condition_variable cv;
+  std::vector<Edit> committed;  // in commit order
+  std::atomic<int> errors{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      try {
+        TargetStore store = TargetStore::Open(db_, TargetStore::Mode::kReadWrite);
+        for (int i = 0; i < kEdits; ++i) {
+          if (i % 3 == 2) {
+            TargetInfo info = store.Get("seed-" + std::to_string(t), false).info;
+            info.title = "edit " + std::to_string(i);
+            store.UpdateInfo(info);
+          } else {
+            TargetRecord r = Record(id_of(t, i));
+            r.model = model_of(t, i);
+            r.encodings = {{"words", words_of(t, i)}};
+            store.Add(r);
+          }
+          std::lock_guard<std::mutex> lock(mu);
+          committed.push_back({t, i});
+          cv.notify_all();
+        }
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << "thread " << t << ": " << e.what();
+        ++errors;
+        std::lock_guard<std::mutex> lock(mu);
+        cv.notify_all();
+      }
+    });
+  }
+  std::vector<Edit> before;
+  {
+    std::unique_lock<std::mutex> lock(mu);
+    cv.wait(lock, [&] { return committed.size() >= std::size_t(3 * kThreads) || errors > 0; });
+    before = committed;  // every edit here committed before the backup starts
+  }
+  const std::string out = (dir_ / "backup.db").string();
+  BackupOptions o;
+  o.pages_per_step = 1;  // many steps, so that commits land between them
+  BackupReport report;
+  EXPECT_NO_THROW(report = BackupTargetStore(db_, out, o));
+  {
+    std::lock_guard<std::mutex> lock(mu);  // how much the backup overlapped, for the record
+    RecordProperty("edits_before_backup", int(before.size()));
+    RecordProperty("edits_during_backup", int(committed.size() - before.size()));
+    RecordProperty("backup_restarts", report.restarts);
+  }
+  for (auto& th : threads) th.join();
+  ASSERT_EQ(errors.load(), 0);
+  ASSERT_EQ(committed.size(), std::size_t(kThreads * kEdits));
+
+  EXPECT_EQ(Sql(out, "PRAGMA integrity_check"), "ok");
+  const TargetStore copy = TargetStore::Open(out);
+  EXPECT_EQ(copy.Count(), report.targets);
+  for (const Edit& e : before) {
+    if (e.index % 3 == 2) {
+      const std::string title = copy.Get("seed-" + std::to_string(e.thread), false).info.title;
+      ASSERT_EQ(title.rfind("edit ", 0), 0u) << title;
+      EXPECT_GE(std::stoi(title.substr(5)), e.index) << "thread " << e.thread;  // that edit or a later one
+    } else {
+      EXPECT_TRUE(copy.Contains(id_of(e.thread, e.index))) << id_of(e.thread, e.index) << " committed before the backup";
+    }
+  }
+  // Whatever the copy holds is whole: each added target with its own model and encoding.
+  std::size_t added = 0;
+  for (const TargetInfo& info : copy.List()) {
+    if (info.id.rfind("seed-", 0) == 0) continue;
+    ++added;
+    const int t = std::stoi(info.id.substr(1, info.id.find('-') - 1)), i = std::stoi(info.id.substr(info.id.find('-') + 1));
+    EXPECT_EQ(copy.Get(info.id, false).model, model_of(t, i)) << info.id;
+    const auto enc = copy.Encodings(info.id);
+    ASSERT_EQ(enc.size(), 1u) << info.id << ": half an edit";
+    EXPECT_EQ(enc[0].second, words_of(t, i)) << info.id;
+  }
+  EXPECT_EQ(copy.Count(), kThreads + added);
+  EXPECT_EQ(Sql(out, "SELECT count(*) FROM encodings WHERE id NOT IN (SELECT id FROM targets)"), "0");
 }
 
 }  // namespace

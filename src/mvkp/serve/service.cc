@@ -147,7 +147,7 @@ RouteInfo RouteOf(const std::string& p) {
     if (slash == std::string::npos) return {"/api/exhibits/{id}", rest.empty() ? "" : "GET, HEAD, PUT, DELETE"};
     const std::string tail = rest.substr(slash);
     if (slash == 0) return {"other", ""};
-    if (tail == "/image") return {"/api/exhibits/{id}/image", "GET, HEAD"};
+    if (tail == "/image") return {"/api/exhibits/{id}/image", "GET, HEAD, PUT"};
     if (tail == "/quality") return {"/api/exhibits/{id}/quality", "GET, HEAD"};
     return {"other", ""};
   }
@@ -693,6 +693,7 @@ struct Service::Impl {
     srv.Get(R"(/api/exhibits/([^/]+))", H(&Impl::GetExhibit));
     srv.Post("/api/exhibits", H(&Impl::AddExhibit));
     srv.Put(R"(/api/exhibits/([^/]+))", H(&Impl::UpdateExhibit));
+    srv.Put(R"(/api/exhibits/([^/]+)/image)", H(&Impl::ReplaceImage));
     srv.Delete(R"(/api/exhibits/([^/]+))", H(&Impl::DeleteExhibit));
   }
 
@@ -978,33 +979,8 @@ struct Service::Impl {
     try {
       TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
       if (store.Contains(inf.id)) return SendError(res, 409, "exhibit '" + inf.id + "' already exists");
-      cv::Mat gray;
-      try {
-        ImageLimits lim;
-        lim.max_pixels = a.max_pixels;
-        gray = DecodeImageGray("image", std::vector<std::uint8_t>(img.begin(), img.end()), lim);
-      } catch (const Error& e) {
-        return SendError(res, 400, e.what());
-      }
-      const auto slot = cpu.Acquire();
-      ++trainings;
-      // The quality assessment (the longer job) runs beside the training.
-      auto assessed = std::async(std::launch::async, [&gray] { return AssessTarget(gray, QualityOptions{}); });
-      Timer train;
       TargetRecord r;
-      try {
-        r = MakeTargetRecord(inf, std::vector<std::uint8_t>(img.begin(), img.end()), gray, DbTrainDefaults(), "image");
-      } catch (const Error& e) {
-        assessed.wait();
-        if (e.code() == ErrorCode::kIo) throw;
-        return SendError(res, 400, e.what());
-      }
-      train_ms = train.ElapsedMs();
-      const QualityReport report = assessed.get();
-      quality_ms = report.ms;
-      q = QualityJson(report, /*with_points=*/false);
-      const std::string qs = Dump(q);
-      r.encodings.push_back({kQualityEncoding, std::vector<std::uint8_t>(qs.begin(), qs.end())});
+      if (!Train(inf, img, r, q, train_ms, quality_ms, res)) return;
       store.Add(r);  // one transaction
     } catch (const std::exception& e) {
       return Internal(res, std::string("admin add: ") + e.what());
@@ -1021,6 +997,83 @@ struct Service::Impl {
     out["quality"] = q;
     out["time_ms"] = {{"train", train_ms}, {"quality", quality_ms}, {"reload", reload_ms}, {"total", total.ElapsedMs()}};
     res.status = 201;
+    res.set_content(Dump(out), "application/json");
+  }
+
+  // Decodes and trains an exhibit's image with its quality report (admin
+  // add and replace; admin_mutex held). A bad image or one training refuses
+  // gets 400 and false; internal failures throw.
+  bool Train(const TargetInfo& inf, const std::string& img, TargetRecord& r, Json& q, double& train_ms,
+             double& quality_ms, httplib::Response& res) {
+    cv::Mat gray;
+    try {
+      ImageLimits lim;
+      lim.max_pixels = a.max_pixels;
+      gray = DecodeImageGray("image", std::vector<std::uint8_t>(img.begin(), img.end()), lim);
+    } catch (const Error& e) {
+      SendError(res, 400, e.what());
+      return false;
+    }
+    const auto slot = cpu.Acquire();
+    ++trainings;
+    // The quality assessment (the longer job) runs beside the training.
+    auto assessed = std::async(std::launch::async, [&gray] { return AssessTarget(gray, QualityOptions{}); });
+    Timer train;
+    try {
+      r = MakeTargetRecord(inf, std::vector<std::uint8_t>(img.begin(), img.end()), gray, DbTrainDefaults(), "image");
+    } catch (const Error& e) {
+      assessed.wait();
+      if (e.code() == ErrorCode::kIo) throw;
+      SendError(res, 400, e.what());
+      return false;
+    }
+    train_ms = train.ElapsedMs();
+    const QualityReport report = assessed.get();
+    quality_ms = report.ms;
+    q = QualityJson(report, /*with_points=*/false);
+    const std::string qs = Dump(q);
+    r.encodings.push_back({kQualityEncoding, std::vector<std::uint8_t>(qs.begin(), qs.end())});
+    return true;
+  }
+
+  // PUT /api/exhibits/{id}/image (admin): a new photo (the body, image/jpeg
+  // or image/png, or multipart field "image"), checked and trained as an
+  // add's; id and metadata stay. A refused image or a failed training keeps
+  // the old image and model (one transaction replaces them).
+  void ReplaceImage(const httplib::Request& req, httplib::Response& res) {
+    if (!Authorised(req, res)) return;
+    if (t_overloaded) {
+      res.set_header("Retry-After", "1");
+      return SendError(res, 503, "busy: try again");
+    }
+    const std::string id = req.matches[1];
+    const bool form = req.is_multipart_form_data();
+    const std::string img = !form ? req.body : req.has_file("image") ? req.get_file_value("image").content : "";
+    if (img.empty())
+      return SendError(res, 400, "expected the new image as the body (image/jpeg or image/png) or multipart field 'image'");
+    Timer total;
+    double train_ms = 0, quality_ms = 0;
+    Json q;
+    std::unique_lock<std::mutex> admin(admin_mutex);  // one writer
+    try {
+      TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
+      if (!store.Contains(id)) return SendError(res, 404, "no exhibit '" + id + "'");
+      TargetRecord r;
+      if (!Train(store.Get(id, false).info, img, r, q, train_ms, quality_ms, res)) return;
+      if (!store.ReplaceImage(r)) return SendError(res, 404, "no exhibit '" + id + "'");
+    } catch (const std::exception& e) {
+      return Internal(res, std::string("admin replace image: ") + e.what());
+    }
+    thumbs.Clear();  // keyed by added_at, which has whole seconds: a replace within one must not show the old photo
+    ReloadAfterChange();
+    const TargetInfo now = TargetStore::Open(a.db).Get(id, false).info;
+    {
+      std::lock_guard<std::mutex> lock(quality_mutex);
+      quality[id] = {now.added_at, q};
+    }
+    Json out = InfoJson(now);
+    out["quality"] = q;
+    out["time_ms"] = {{"train", train_ms}, {"quality", quality_ms}, {"total", total.ElapsedMs()}};
     res.set_content(Dump(out), "application/json");
   }
 

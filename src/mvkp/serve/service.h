@@ -11,6 +11,8 @@
 //        -> 201 with the exhibit and its target quality ("quality")
 //   PUT  /api/exhibits/{id} (JSON object with any of title, artist, year,
 //        url, meta), DELETE /api/exhibits/{id},
+//   PUT  /api/exhibits/{id}/image (the new photo as the body or multipart
+//        field "image"): retrains it; a refused image keeps the old model,
 //   GET  /api/exhibits/{id}/quality (the report of `mvkp quality`),
 //   GET  /api/admin/check (204: the token is right):
 //        admin, "Authorization: Bearer TOKEN"; without a token the admin API

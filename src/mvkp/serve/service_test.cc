@@ -495,6 +495,61 @@ TEST_F(ServiceTest, PhonePhotosAreAcceptedAndAnsweredInTheirOwnPixels) {
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 400);
   EXPECT_NE(r->body.find("GIF images are not supported"), std::string::npos) << r->body;
+
+// Issue 20: an exhibit's photo is replaced and retrained through the admin
+// API; a refused image leaves the old photo and model serving.
+TEST_F(ServiceTest, ReplacingAnExhibitsPhotoRetrainsItAndABadOneKeepsTheOld) {
+  const std::string db = CopyDb("replace");
+  Running s(Options(db));
+  auto c = s.Client();
+  std::vector<std::uint8_t> coffee;
+  cv::imencode(".jpg", testing::Sample("coffee.jpg"), coffee);
+  const std::string coffee_jpeg(coffee.begin(), coffee.end());
+  auto r = c.Put("/api/exhibits/starry/image", coffee_jpeg, "image/jpeg");  // no token
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 401);
+  r = c.Put("/api/exhibits/ghost/image", Admin(), coffee_jpeg, "image/jpeg");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 404);
+  const std::string before = TargetStore::Open(db).Get("starry", false).info.added_at;
+  r = c.Put("/api/exhibits/starry/image", Admin(), "not an image", "image/jpeg");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  ExpectClean(r, db);
+  EXPECT_EQ(TargetStore::Open(db).Get("starry", false).info.added_at, before);  // untouched
+  r = c.Post("/api/recognize", StarryJpeg(), "image/jpeg");
+  ASSERT_TRUE(r && r->status == 200);
+  ASSERT_FALSE(Json::parse(r->body)["found"].empty());
+  EXPECT_EQ(Json::parse(r->body)["found"][0]["id"], "starry");
+
+  auto thumb_before = c.Get("/api/exhibits/starry/image?thumb=64");
+  ASSERT_TRUE(thumb_before && thumb_before->status == 200);
+  httplib::MultipartFormDataItems form = {{"image", coffee_jpeg, "c.jpg", "image/jpeg"}};
+  r = c.Put("/api/exhibits/starry/image", Admin(), form);
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  const Json j = Json::parse(r->body);
+  EXPECT_EQ(j["id"], "starry");
+  EXPECT_EQ(j["title"], "starry");  // metadata stays
+  EXPECT_TRUE(j.contains("quality"));
+  const TargetRecord stored = TargetStore::Open(db).Get("starry", true);
+  EXPECT_EQ(stored.image, coffee);
+  auto thumb_after = c.Get("/api/exhibits/starry/image?thumb=64");  // not the cached old one
+  ASSERT_TRUE(thumb_after && thumb_after->status == 200);
+  EXPECT_NE(thumb_after->body, thumb_before->body);
+  // Without exhibit "coffee", the coffee frame is now exhibit "starry".
+  r = c.Delete("/api/exhibits/coffee", Admin());
+  ASSERT_TRUE(r && r->status == 204);
+  r = c.Post("/api/recognize", coffee_jpeg, "image/jpeg");
+  ASSERT_TRUE(r && r->status == 200);
+  ASSERT_FALSE(Json::parse(r->body)["found"].empty()) << r->body;
+  EXPECT_EQ(Json::parse(r->body)["found"][0]["id"], "starry");
+  r = c.Get("/api/exhibits/starry/image", Admin());
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_EQ(r->body, coffee_jpeg);
+  r = c.Delete("/api/exhibits/starry/image", Admin());
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 405);
 }
 
 }  // namespace
