@@ -559,7 +559,10 @@ TEST_F(ServiceTest, HttpsServesTheSameRoutesAndLimits) {
   EXPECT_EQ(Json::parse(r->body)["found"][0]["id"], "starry");
   r = c.Get("/");
   ASSERT_TRUE(r && r->status == 200);
+  EXPECT_NE(r->body.find("/ui.js"), std::string::npos);
   EXPECT_FALSE(r->get_header_value("Content-Security-Policy").empty());
+  r = c.Get("/sw.js");
+  ASSERT_TRUE(r && r->status == 200);
   r = c.Delete("/api/recognize");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 405);
