@@ -94,8 +94,21 @@
 
   // --- the card -----------------------------------------------------------------
 
+  // Exhibits shown on this page, and those asked again through the service
+  // worker. A page the worker did not control from the start fetched their
+  // information past it (app.js), so it is asked once more to be kept offline.
+  const seen = new Set(), kept = new Set();
+  const controlledAtStart = !!(navigator.serviceWorker && navigator.serviceWorker.controller);
+  function keep(id) {
+    if (controlledAtStart || kept.has(id) || !navigator.serviceWorker || !navigator.serviceWorker.controller) return;
+    kept.add(id);
+    fetch('/api/exhibits/' + encodeURIComponent(id)).catch(() => kept.delete(id));
+  }
+
   function fillCard(e) {
     cardId = e.id;
+    seen.add(e.id);
+    keep(e.id);
     const title = e.title || e.id;
     $('card-title').textContent = title;
     $('card-artist').textContent = e.artist || '';
@@ -308,12 +321,13 @@
   // localhost only; without it the page works as before.
   if ('serviceWorker' in navigator && window.isSecureContext) {
     navigator.serviceWorker.register('/sw.js').catch((e) => console.info('no offline copy:', e.message));
-    // On the first visit the worker starts after the first card was fetched: ask
-    // again, through it, so that card is kept too.
+    // On the first visit the worker takes over while the page runs: what was
+    // fetched before (or in flight) is asked again, through it, to be kept.
     navigator.serviceWorker.addEventListener('controllerchange', () => {
-      if (!cardId) return;
-      fetch('/api/exhibits/' + encodeURIComponent(cardId)).catch(() => {});
-      fetch(thumbUrl(cardId, THUMB)).catch(() => {});
+      for (const id of seen) {
+        keep(id);
+        fetch(thumbUrl(id, THUMB)).catch(() => {});
+      }
     });
   }
 
