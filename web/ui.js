@@ -290,7 +290,7 @@
       why = 'The camera could not be started.';
     }
     $('permission-text').textContent = why;
-    $('permission-https').hidden = !secure ? true : false;
+    $('permission-https').hidden = !secure;  // else the text above says it already
     $('permission').hidden = false;
     $('upload').hidden = false;
     stage.classList.add('no-camera');
