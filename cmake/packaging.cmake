@@ -49,7 +49,7 @@ if(TARGET mvkp_geo)
   string(APPEND MVKP_PC_REQUIRES ", gdal")
 endif()
 if(TARGET mvkp_serve)
-  string(APPEND MVKP_PC_REQUIRES ", cpp-httplib")  # libcpp-httplib-dev
+  string(APPEND MVKP_PC_REQUIRES ", cpp-httplib, openssl")  # libcpp-httplib-dev, libssl-dev (HTTPS)
 endif()
 # Relocatable: prefix from the .pc file's own directory (pkg-config's
 # ${pcfiledir}), so the same file works under /usr, a PREFIX= install or an
@@ -140,7 +140,7 @@ set(CPACK_DEBIAN_COMPRESSION_TYPE gzip)  # fast to build (CTest deb_install buil
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME libmvkp-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
-    "libopencv-dev (>= 4.5), libgdal-dev, libsqlite3-dev, nlohmann-json3-dev (>= 3), libjpeg-dev, libpng-dev, zlib1g-dev, libcpp-httplib-dev")
+    "libopencv-dev (>= 4.5), libgdal-dev, libsqlite3-dev, nlohmann-json3-dev (>= 3), libjpeg-dev, libpng-dev, zlib1g-dev, libcpp-httplib-dev, libssl-dev")
 set(CPACK_DEBIAN_DEV_PACKAGE_SUGGESTS "cmake (>= 3.25), pkg-config, g++ (>= 4:12)")
 set(CPACK_COMPONENT_DEV_DISPLAY_NAME "mvkp development files")
 set(CPACK_COMPONENT_DEV_DESCRIPTION

@@ -12,6 +12,7 @@ pkgs=(
   libfaiss-dev libhnswlib-dev  # nearest-neighbour baselines of bench/mvkp_bench_knn (optional there)
   libsqlite3-dev           # target database (src/mvkp/db)
   libcpp-httplib-dev       # mvkp serve (museum guide server)
+  libssl-dev openssl       # mvkp serve --cert/--key (HTTPS); openssl makes the test certificates
   libgdal-dev              # GeoTIFF DSM/nDSM and orthophoto input (src/mvkp/geo, issue 8)
   nodejs                   # web client checks (tests/serve_api_test.py)
   chromium                 # web client in a real browser (tests/e2e, CTest web_e2e)

@@ -191,6 +191,15 @@ with tempfile.TemporaryDirectory() as t:
         check("app.js is valid JavaScript (node --check)", r.returncode == 0, r.stderr)
         s, ct, b = request(base, "GET", "/style.css")
         check("style.css", s == 200 and ct.startswith("text/css"))
+        for name in ("ui.js", "sw.js"):  # issue 20: card, list, site, permission hint; offline copy
+            s, ct, b = request(base, "GET", "/" + name)
+            r = node_check(t + "/" + name, b)
+            check(name + ": served, valid JavaScript (node --check), no data in innerHTML",
+                  s == 200 and ct.startswith("text/javascript") and b"innerHTML" not in b and r.returncode == 0, r.stderr)
+        s, ct, b = request(base, "GET", "/api/site")
+        site = json.loads(b) if s == 200 else {}
+        check("/api/site without --site: the default name, no logo",
+              site.get("name") == "Museum guide" and site.get("logo", 0) is None, b[:200])
 
         # The admin page: HTML, script and style, with a content security policy.
         s, h, b = request_headers(base, "GET", "/admin")

@@ -11,6 +11,7 @@
   const hint = document.getElementById('hint');
   const card = document.getElementById('card');
   const debug = document.getElementById('debug');
+  const ui = window.mvkpUi;        // ui.js: card, list, site, camera hint, frame-to-screen fit
   const params = new URLSearchParams(location.search);
   const showDebug = params.get('debug') === '1';
   const info = new Map();          // exhibit id -> information (fetched once)
@@ -21,18 +22,6 @@
   let lastMs = 0, frames = 0;
 
   debug.hidden = !showDebug;
-
-  // Only http(s) links become links (the server refuses others; rows stored
-  // before it did stay text).
-  function safeUrl(u) {
-    if (!u) return null;
-    try {
-      const url = new URL(u, location.href);
-      return url.protocol === 'http:' || url.protocol === 'https:' ? url.href : null;
-    } catch (e) {
-      return null;
-    }
-  }
 
   // The server is busy (503) or refusing (429, 5xx): not "nothing found".
   // The outline stays; the loop waits Retry-After or a growing back-off.
@@ -56,26 +45,18 @@
   async function showCard(id) {
     if (id === shown) return;
     shown = id;
-    if (!id) { card.hidden = true; return; }
+    if (!id) { ui.hideCard(); return; }
     const e = await exhibit(id);
     if (shown !== id) return;
-    document.getElementById('card-title').textContent = e.title || e.id;
-    document.getElementById('card-artist').textContent = e.artist || '';
-    document.getElementById('card-year').textContent = e.year || '';
-    const link = document.getElementById('card-link');
-    const href = safeUrl(e.url);
-    link.hidden = !href;
-    if (href) link.href = href; else link.removeAttribute('href');
-    card.hidden = false;
+    ui.showCard(e);
   }
 
-  // Maps frame pixels to overlay pixels (the video is letterboxed by object-fit: contain).
+  // Maps frame pixels to overlay pixels as the video (object-fit: cover) or photo (contain) is shown.
   function draw(found, fw, fh) {
     overlay.width = overlay.clientWidth * devicePixelRatio;
     overlay.height = overlay.clientHeight * devicePixelRatio;
     ctx.clearRect(0, 0, overlay.width, overlay.height);
-    const s = Math.min(overlay.width / fw, overlay.height / fh);
-    const ox = (overlay.width - fw * s) / 2, oy = (overlay.height - fh * s) / 2;
+    const { s, ox, oy } = ui.fit(overlay.width, overlay.height, fw, fh);
     ctx.lineWidth = 4 * devicePixelRatio;
     ctx.strokeStyle = '#3f3';
     ctx.fillStyle = '#3f3';
@@ -133,11 +114,11 @@
   }
 
   // No camera: recognise a chosen photo, shown under the outline; another can be chosen.
-  function fallback() {
+  function fallback(err) {
     const upload = document.getElementById('upload');
     const photo = document.getElementById('photo');
     upload.hidden = false;
-    hint.textContent = 'No camera available';
+    hint.textContent = ui.cameraProblem(err);
     idleHint = 'No painting recognised in this photo';
     photo.onload = async () => {
       video.hidden = true;

@@ -91,6 +91,10 @@ void RegisterServe(CLI::App& app, int* code) {
                 "seconds between checks for changes committed by others (replicas, mvkp db); 0: off")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 86400.0));
+  c->add_option("--site", o.site,
+                "site.json: the museum's name, intro, colours and logo for the visitor page (GET /api/site)");
+  c->add_option("--cert", o.cert, "PEM certificate (chain): serve HTTPS (phones give the camera to https pages only)");
+  c->add_option("--key", o.key, "PEM private key of --cert");
   c->add_option("--probe-words", o.probe_words,
                 "exact search: 0 compares with every centre; N only with those in the query's N nearest words")
       ->capture_default_str()

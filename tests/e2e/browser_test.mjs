@@ -12,10 +12,21 @@
 //     painting, says so for a photo without any exhibit, and hides the link of an
 //     exhibit that has none
 //   - a camera seeing no exhibit: the hint stays, no card, no outline
-// Exits non-zero on any failure; the server is stopped in every case.
+//   - issue 20, the visitor page: the museum's name, colours and logo (--site); the
+//     card's picture, description (meta.description) and screen-reader labels, text
+//     contrast >= 4.5:1; portrait and landscape fill the screen (object-fit: cover)
+//     and the outline still lies on the painting; camera permission denied: the hint
+//     explains how to allow it and the photo flow works; the exhibit list and its
+//     search, a card opened from it takes focus and gives it back; over HTTPS (a
+//     self-signed certificate made here with openssl) the page loads and recognises;
+//     with the server gone, a card already seen still opens (service worker)
+//   - screenshots for the documentation into $DOCS_IMG (default $OUT/docs-img):
+//     visitor-portrait.png, visitor-landscape.png, visitor-no-camera.png,
+//     visitor-list.png, visitor-two-paintings.png, admin.png
+// Exits non-zero on any failure; the servers are stopped in every case.
 //
 // Env: MVKP (mvkp binary, required), SAMPLES (repo samples/, required), OUT,
-// E2E_SCREENSHOT, CHROMIUM (default /usr/bin/chromium), E2E_TITLE_BUDGET_MS (2000).
+// E2E_SCREENSHOT, DOCS_IMG, CHROMIUM (default /usr/bin/chromium), E2E_TITLE_BUDGET_MS (2000).
 // Run through run.sh, which installs Chromium and playwright-core when missing.
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
@@ -34,11 +45,15 @@ if (!MVKP || !SAMPLES) {
 }
 const OUT = process.env.OUT || path.dirname(path.resolve(MVKP));
 const SCREENSHOT = process.env.E2E_SCREENSHOT || path.join(OUT, 'e2e-screenshot.png');
+const DOCS_IMG = process.env.DOCS_IMG || path.join(OUT, 'docs-img');
 const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
 const TITLE_BUDGET_MS = Number(process.env.E2E_TITLE_BUDGET_MS || 2000);
 const TITLE = 'The Starry Night';
-// A phone held upright: the 640x480 camera frames are letterboxed in the middle.
+// A phone held upright, then turned: the 640x480 camera frames fill the screen (cropped).
 const PHONE = { viewport: { width: 412, height: 915 }, deviceScaleFactor: 2, isMobile: true, hasTouch: true };
+const LANDSCAPE = { viewport: { width: 915, height: 412 }, deviceScaleFactor: 2, isMobile: true, hasTouch: true };
+const SITE_NAME = "Musée de l'Exemple";
+const DESCRIPTION = 'Painted from memory during the day, the view from his window at Saint-Rémy before sunrise.';
 
 let passed = 0;
 const failures = [];
@@ -56,9 +71,10 @@ const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'mvkp-e2e-'));
 let server = null;
 const serverLog = [];
 const browsers = [];
+const others = [];  // servers of single checks (HTTPS, offline)
 
 function killServer() {
-  if (server && server.exitCode === null && server.signalCode === null) server.kill('SIGKILL');
+  for (const p of [server, ...others]) if (p && p.exitCode === null && p.signalCode === null) p.kill('SIGKILL');
 }
 process.on('exit', () => {
   killServer();
@@ -89,18 +105,21 @@ function run(cmd, args) {
   if (r.status !== 0) fatal('setup: ' + [cmd, ...args].join(' ') + '\n' + (r.stdout || '') + (r.stderr || '') + (r.error || ''));
 }
 
-// Starts `mvkp serve DB --port 0`; the chosen port is in the first JSON line on stderr.
-function startServer(db) {
+// Starts `mvkp serve DB --port 0 ...extra` (the main server, or with `other` one of
+// a single check, in `others`); the chosen port is in the first JSON line on stderr.
+function startServer(db, extra = [], other = false) {
   return new Promise((resolve, reject) => {
-    server = spawn(MVKP, ['serve', db, '--host', '127.0.0.1', '--port', '0'], { stdio: ['ignore', 'ignore', 'pipe'] });
+    const proc = spawn(MVKP, ['serve', db, '--host', '127.0.0.1', '--port', '0', ...extra], { stdio: ['ignore', 'ignore', 'pipe'] });
+    if (other) others.push(proc); else server = proc;
+    const server_ = proc;
     const timer = setTimeout(() => reject(new Error('no listening line from mvkp serve within 60 s')), 60000);
-    server.on('error', (e) => { clearTimeout(timer); reject(e); });
-    server.on('exit', (code, sig) => {
+    server_.on('error', (e) => { clearTimeout(timer); reject(e); });
+    server_.on('exit', (code, sig) => {
       clearTimeout(timer);
       reject(new Error('mvkp serve exited early: ' + (code ?? sig)));
     });
     let first = true;
-    readline.createInterface({ input: server.stderr }).on('line', (line) => {
+    readline.createInterface({ input: server_.stderr }).on('line', (line) => {
       serverLog.push(line);
       if (serverLog.length > 40) serverLog.shift();
       if (!first) return;
@@ -124,6 +143,13 @@ async function stopServer() {
   clearTimeout(t);
 }
 
+async function stopOther(proc) {
+  if (proc.exitCode !== null || proc.signalCode !== null) return;
+  const exited = new Promise((ok) => proc.once('exit', ok));
+  proc.kill('SIGTERM');
+  await exited;
+}
+
 async function launch(video) {
   const b = await chromium.launch({
     executablePath: CHROMIUM,
@@ -131,15 +157,17 @@ async function launch(video) {
     timeout: 120000,
     args: ['--no-sandbox', '--disable-dev-shm-usage', '--use-fake-device-for-media-stream',
            '--use-fake-ui-for-media-stream', '--use-file-for-fake-video-capture=' + video,
-           '--autoplay-policy=no-user-gesture-required'],
+           '--autoplay-policy=no-user-gesture-required',
+           // museum.test: this server under a name that is not localhost, i.e. not a secure context over http.
+           '--host-resolver-rules=MAP museum.test 127.0.0.1'],
   });
   browsers.push(b);
   return b;
 }
 
 // A page that records what it throws or logs as an error, and every title its card shows.
-async function newPage(browser, initScript) {
-  const context = await browser.newContext(PHONE);
+async function newPage(browser, initScript, options = PHONE) {
+  const context = await browser.newContext(options);
   context.setDefaultTimeout(30000);
   if (initScript) await context.addInitScript(initScript);
   await context.addInitScript(() => {
@@ -167,13 +195,14 @@ function noErrors(page, what) {
 }
 
 // Looks for the overlay's green outline along the edges of `quad` (frame pixels of a
-// fw x fh frame), mapped as app.js maps it (object-fit: contain letterboxing).
+// fw x fh frame), mapped as the browser shows the frame: the camera video with
+// object-fit: cover (fills the screen, cropped), a chosen photo with contain.
 // Returns {edgeHits, samples, corners, centreGreen, green}.
-function outlineAt(page, quad, fw, fh) {
-  return page.evaluate(([quad, fw, fh]) => {
+function outlineAt(page, quad, fw, fh, fitMode = 'cover') {
+  return page.evaluate(([quad, fw, fh, fitMode]) => {
     const c = document.getElementById('overlay');
     const px = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
-    const s = Math.min(c.width / fw, c.height / fh);
+    const s = (fitMode === 'cover' ? Math.max : Math.min)(c.width / fw, c.height / fh);
     const ox = (c.width - fw * s) / 2, oy = (c.height - fh * s) / 2;
     const pt = ([x, y]) => [ox + x * s, oy + y * s];
     const isGreen = (x, y) => {
@@ -186,29 +215,41 @@ function outlineAt(page, quad, fw, fh) {
       for (let dy = -r; dy <= r; dy += 1) for (let dx = -r; dx <= r; dx += 1) if (isGreen(x + dx, y + dy)) return true;
       return false;
     };
-    let edgeHits = 0, samples = 0, corners = 0;
+    // Only what is on screen counts: under object-fit: cover a frame of another
+    // shape than the screen is cropped, and so is the outline.
+    const inside = ([x, y]) => x >= 0 && y >= 0 && x < c.width && y < c.height;
+    let edgeHits = 0, samples = 0, corners = 0, cornersVisible = 0;
     for (let k = 0; k < 4; k++) {
       const a = pt(quad[k]), b = pt(quad[(k + 1) % 4]);
-      if (near(a)) corners++;
+      if (inside(a)) {
+        cornersVisible++;
+        if (near(a)) corners++;
+      }
       for (let i = 0; i < 16; i++) {
         const t = (i + 0.5) / 16;
+        const q = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+        if (!inside(q)) continue;
         samples++;
-        if (near([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])) edgeHits++;
+        if (near(q)) edgeHits++;
       }
     }
     const cx = quad.reduce((v, q) => v + q[0], 0) / 4, cy = quad.reduce((v, q) => v + q[1], 0) / 4;
     let green = 0;
     for (let i = 0; i < px.length; i += 4) if (px[i + 3] > 128 && px[i + 1] > 180 && px[i] < 140 && px[i + 2] < 140) green++;
-    return { edgeHits, samples, corners, centreGreen: near(pt([cx, cy])), green };
-  }, [quad, fw, fh]);
+    return { edgeHits, samples, corners, cornersVisible, centreGreen: near(pt([cx, cy])), green };
+  }, [quad, fw, fh, fitMode]);
 }
 
-async function waitForOutline(page, quad, fw, fh, ms) {
+// The outline lies on the painting: 90 % of the visible edge samples and every
+// visible corner are green (at least 16 samples visible), the centre is not.
+const outlined = (o) => o.samples >= 16 && o.edgeHits >= 0.9 * o.samples && o.corners === o.cornersVisible && !o.centreGreen;
+
+async function waitForOutline(page, quad, fw, fh, ms, fitMode = 'cover') {
   const end = Date.now() + ms;
   let o;
   for (;;) {
-    o = await outlineAt(page, quad, fw, fh);
-    if ((o.edgeHits >= 0.9 * o.samples && o.corners === 4 && !o.centreGreen) || Date.now() > end) return o;
+    o = await outlineAt(page, quad, fw, fh, fitMode);
+    if (outlined(o) || Date.now() > end) return o;
     await page.waitForTimeout(100);
   }
 }
@@ -233,15 +274,22 @@ async function main() {
   fs.mkdirSync(path.dirname(SCREENSHOT), { recursive: true });
 
   // Fake camera video, photos, and a database of two exhibits.
+  fs.mkdirSync(DOCS_IMG, { recursive: true });
   run('/usr/bin/python3', [path.join(HERE, 'make_video.py'), SAMPLES, tmp]);
+  run('/usr/bin/python3', [path.join(HERE, 'make_site.py'), SAMPLES, tmp]);
   const scene = JSON.parse(fs.readFileSync(path.join(tmp, 'scene.json'), 'utf8'));
   const db = path.join(tmp, 'museum.db');
   run(MVKP, ['db', 'create', db]);
   run(MVKP, ['db', 'add', db, '--id', 'starry', '--image', path.join(SAMPLES, 'starry_night.jpg'), '--title', TITLE,
-             '--artist', 'Vincent van Gogh', '--year', '1889', '--url', 'https://example.org/starry']);
+             '--artist', 'Vincent van Gogh', '--year', '1889', '--url', 'https://example.org/starry',
+             '--meta', JSON.stringify({ description: DESCRIPTION })]);
   run(MVKP, ['db', 'add', db, '--id', 'building', '--image', path.join(SAMPLES, 'building.jpg'), '--title', 'Building']);
+  const tokenFile = path.join(tmp, 'admin-token');
+  const TOKEN = 'e2e-admin-token-0123456789';
+  fs.writeFileSync(tokenFile, TOKEN + '\n');
+  const site = ['--site', path.join(tmp, 'site.json')];
 
-  const port = await startServer(db).catch((e) => fatal(e.message));
+  const port = await startServer(db, [...site, '--admin-token-file', tokenFile]).catch((e) => fatal(e.message));
   const base = 'http://127.0.0.1:' + port;
   console.log('server on', base);
   server.on('exit', (code, sig) => { if (!stopping) fatal('mvkp serve died during the test: ' + (code ?? sig)); });
@@ -267,8 +315,8 @@ async function main() {
   check('hint hidden while the painting is recognised', st.hint === null, JSON.stringify(st));
   check('upload fallback hidden when the camera works', !st.uploadVisible, JSON.stringify(st));
   const o = await waitForOutline(page, scene.quad, scene.width, scene.height, 5000);
-  check(`outline drawn around the painting (${o.edgeHits}/${o.samples} edge samples, ${o.corners}/4 corners)`,
-        o.edgeHits >= 0.9 * o.samples && o.corners === 4 && !o.centreGreen, JSON.stringify(o));
+  check(`outline drawn around the painting (${o.edgeHits}/${o.samples} visible edge samples, ${o.corners}/${o.cornersVisible} corners)`,
+        outlined(o), JSON.stringify(o));
   check('debug corner hidden without ?debug=1', await page.locator('#debug').isHidden());
   await page.waitForTimeout(1000);  // a few more frames: the card must stay, and never show another exhibit
   const later = await page.evaluate(() => window.__titles);
@@ -335,17 +383,30 @@ async function main() {
   } catch (e) {
     check('no camera: the upload fallback is offered', false, JSON.stringify(await cardState(page)));
   }
+  const perm = await page.evaluate(() => ({
+    visible: !!document.getElementById('permission').offsetParent,
+    text: document.getElementById('permission').innerText,
+    upload: document.getElementById('upload').innerText,
+    capture: document.getElementById('file').getAttribute('capture'),
+    hint: document.getElementById('hint').textContent,
+  }));
+  check('camera denied: a hint explains how to allow it and that phones need HTTPS',
+        perm.visible && /refused/i.test(perm.text) && /Allow/.test(perm.text) && /https/i.test(perm.text), JSON.stringify(perm));
+  check('camera denied: a "take or choose a photo" button opening the rear camera',
+        /take or choose a photo/i.test(perm.upload) && perm.capture === 'environment', JSON.stringify(perm));
+  await page.screenshot({ path: path.join(DOCS_IMG, 'visitor-no-camera.png'), scale: 'css' });
   await page.setInputFiles('#file', path.join(tmp, 'photo.jpg'));
   try {
     await waitTitle(page, TITLE, 15000);
     check('upload: a photo of the painting shows its card', true);
     // The photo is the video's layout scaled up, so the painting is at the same frame coordinates.
-    const u = await waitForOutline(page, scene.quad, scene.width, scene.height, 3000);
+    const u = await waitForOutline(page, scene.quad, scene.width, scene.height, 3000, 'contain');
     check(`upload: outline drawn around the painting (${u.edgeHits}/${u.samples})`,
-          u.edgeHits >= 0.9 * u.samples && u.corners === 4, JSON.stringify(u));
+          outlined(u) && u.samples === 64 && u.corners === 4, JSON.stringify(u));
     check('upload: the photo is shown under the outline', await page.evaluate(() =>
       [...document.querySelectorAll('#stage img')].some((i) => i.offsetParent && i.naturalWidth > 0)));
     await page.screenshot({ path: SCREENSHOT.replace(/(\.png)?$/, '-upload.png') });
+    check('upload: the permission hint gives way to the photo and its card', await page.locator('#permission').isHidden());
   } catch (e) {
     check('upload: a photo of the painting shows its card', false, JSON.stringify(await cardState(page)));
   }
@@ -356,7 +417,7 @@ async function main() {
     await page.waitForFunction(() => document.getElementById('card').hidden && !document.getElementById('hint').hidden
       && /No painting/.test(document.getElementById('hint').textContent), null, { timeout: 15000 });
     check('upload: a photo without an exhibit says so and hides the card', true);
-    const g = await outlineAt(page, scene.quad, scene.width, scene.height);
+    const g = await outlineAt(page, scene.quad, scene.width, scene.height, 'contain');
     check('upload: no outline left from the previous photo', g.green === 0, JSON.stringify(g));
   } catch (e) {
     check('upload: a photo without an exhibit says so and hides the card', false, JSON.stringify(await cardState(page)));
@@ -403,6 +464,258 @@ async function main() {
     check('no exhibit in view: frames are sent', false, JSON.stringify(await cardState(page)));
   }
   noErrors(page, 'empty scene page');
+  await page.context().close();
+
+  // 5. Issue 20, the visitor page on a phone held upright (upright camera frames, as
+  // phones deliver them): the museum's name, colours and logo; the card's picture,
+  // description and labels; contrast; the video fills the screen.
+  const portraitScene = JSON.parse(fs.readFileSync(path.join(tmp, 'portrait.json'), 'utf8'));
+  const upright = await launch(path.join(tmp, 'portrait.y4m'));
+  page = await newPage(upright);
+  await page.goto(base + '/');
+  try {
+    await waitTitle(page, TITLE, 30000);
+    await page.waitForFunction(() => {
+      const i = document.getElementById('card-img');
+      return !i.hidden && i.complete && i.naturalWidth > 0 && document.getElementById('site-logo').naturalWidth > 0;
+    }, null, { timeout: 10000 });
+  } catch (e) {
+    check('portrait: card with its picture, and the logo', false, JSON.stringify(await cardState(page)));
+  }
+  const look = await page.evaluate(() => {
+    const $ = (id) => document.getElementById(id);
+    const rgb = (c) => (c.match(/[\d.]+/g) || []).slice(0, 3).map(Number);
+    const lum = (c) => {
+      const v = rgb(c).map((x) => x / 255).map((x) => (x <= 0.03928 ? x / 12.92 : Math.pow((x + 0.055) / 1.055, 2.4)));
+      return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+    };
+    const ratio = (a, b) => (Math.max(lum(a), lum(b)) + 0.05) / (Math.min(lum(a), lum(b)) + 0.05);
+    const cardBg = getComputedStyle($('card')).backgroundColor;
+    const contrast = {};
+    for (const id of ['card-title', 'card-artist', 'card-year', 'card-desc', 'card-link'])
+      contrast[id] = ratio(getComputedStyle($(id)).color, cardBg);
+    const bar = document.querySelector('.bar');
+    contrast['site-name'] = ratio(getComputedStyle($('site-name')).color, getComputedStyle(bar).backgroundColor);
+    const box = (el) => { const r = el.getBoundingClientRect(); return [r.x, r.y, r.width, r.height].map(Math.round); };
+    return {
+      name: $('site-name').textContent, title: document.title, barColour: getComputedStyle(bar).backgroundColor,
+      logo: !$('site-logo').hidden && $('site-logo').naturalWidth,
+      desc: $('card-desc').textContent, img: $('card-img').getAttribute('src'), alt: $('card-img').alt,
+      labelledby: $('card').getAttribute('aria-labelledby'), linkLabel: $('card-link').getAttribute('aria-label'),
+      announced: $('announce').textContent, contrast,
+      video: box($('video')), stage: box($('stage')), fit: getComputedStyle($('video')).objectFit,
+      viewport: [innerWidth, innerHeight],
+    };
+  });
+  check('site: the museum\'s name in the header and the page title', look.name === SITE_NAME && look.title === SITE_NAME,
+        JSON.stringify(look));
+  check('site: its colours and logo', look.barColour === 'rgb(122, 24, 32)' && look.logo === 96, JSON.stringify(look));
+  check('card: picture (a thumbnail), description from meta.description',
+        /\/api\/exhibits\/starry\/image\?thumb=\d+/.test(look.img) && look.desc === DESCRIPTION, JSON.stringify(look));
+  check('card: screen-reader labels (heading, picture, link) and an announcement',
+        look.labelledby === 'card-title' && look.alt.includes(TITLE) && /More about The Starry Night/.test(look.linkLabel)
+        && look.announced.includes(TITLE), JSON.stringify(look));
+  check('card and header text contrast >= 4.5:1', Object.values(look.contrast).every((r) => r >= 4.5), JSON.stringify(look.contrast));
+  check('portrait: the video fills everything below the header (object-fit: cover)',
+        look.fit === 'cover' && look.video.join() === look.stage.join() && look.stage[2] === look.viewport[0]
+        && look.stage[1] + look.stage[3] === look.viewport[1], JSON.stringify(look));
+  const op = await waitForOutline(page, portraitScene.quad, portraitScene.width, portraitScene.height, 5000);
+  check(`portrait: outline on the painting (${op.edgeHits}/${op.samples})`, outlined(op) && op.samples === 64, JSON.stringify(op));
+  await page.screenshot({ path: path.join(DOCS_IMG, 'visitor-portrait.png'), scale: 'css' });
+
+  // 6. The exhibit list: search, a card opened from it takes focus and gives it back.
+  await page.click('#list-open');
+  const items = () => page.$$eval('#list-items .item', (b) => b.map((x) => x.innerText.split('\n')[0]));
+  try {
+    await page.waitForFunction(() => document.querySelectorAll('#list-items .item').length === 2, null, { timeout: 10000 });
+    check('list: every exhibit, the search field focused',
+          await page.evaluate(() => document.activeElement.id === 'list-search'
+            && document.getElementById('list-open').getAttribute('aria-expanded') === 'true'));
+    await page.waitForFunction(() => [...document.querySelectorAll('#list-items img')].every((i) => i.complete && i.naturalWidth > 0),
+                               null, { timeout: 10000 });
+    await page.screenshot({ path: path.join(DOCS_IMG, 'visitor-list.png'), scale: 'css' });
+    await page.fill('#list-search', 'gogh');
+    let found = await items();
+    check('list search: "gogh" finds the artist\'s painting only', found.length === 1 && found[0] === TITLE, JSON.stringify(found));
+    await page.fill('#list-search', 'RÉMY');  // accents and case do not matter; descriptions are searched
+    found = await items();
+    check('list search: words of the description, any case or accent', found.length === 1 && found[0] === TITLE, JSON.stringify(found));
+    await page.fill('#list-search', 'zzz');
+    check('list search: nothing found says so', (await items()).length === 0
+          && /0 of 2/.test(await page.locator('#list-count').textContent()));
+    await page.fill('#list-search', 'build');
+    await page.click('#list-items .item');
+    await page.waitForFunction(() => document.getElementById('card-title').textContent === 'Building');
+    check('list: the chosen exhibit\'s card opens and takes focus', await page.evaluate(() =>
+      !document.getElementById('card').hidden && document.activeElement.id === 'card'
+      && document.getElementById('list').hidden));
+    await page.keyboard.press('Escape');
+    check('list: Escape closes the card and focus returns to the list item', await page.evaluate(() =>
+      document.getElementById('card').hidden && !document.getElementById('list').hidden
+      && document.activeElement.classList.contains('item') && document.activeElement.dataset.id === 'building'));
+  } catch (e) {
+    check('list and search', false, e.message);
+  }
+  noErrors(page, 'portrait page');
+  await page.context().close();
+
+  // 7. Landscape: the 4:3 camera fills the wider screen, the outline still lies on the
+  // painting, and the card is a column on the right.
+  page = await newPage(cam, null, LANDSCAPE);
+  await page.goto(base + '/');
+  try {
+    await waitTitle(page, TITLE, 30000);
+    await page.waitForFunction(() => document.getElementById('card-img').naturalWidth > 0, null, { timeout: 10000 });
+    const ol = await waitForOutline(page, scene.quad, scene.width, scene.height, 5000);
+    check(`landscape: outline on the painting under object-fit: cover (${ol.edgeHits}/${ol.samples})`, outlined(ol), JSON.stringify(ol));
+    const lb = await page.evaluate(() => {
+      const r = (id) => document.getElementById(id).getBoundingClientRect();
+      return { video: r('video'), stage: r('stage'), card: r('card'), w: innerWidth, h: innerHeight };
+    });
+    check('landscape: the video fills the screen below the header, the card is on the right',
+          lb.video.width === lb.w && lb.video.bottom === lb.h && lb.card.left > lb.w / 2 && lb.card.height > lb.h / 2,
+          JSON.stringify(lb));
+    await page.screenshot({ path: path.join(DOCS_IMG, 'visitor-landscape.png'), scale: 'css' });
+  } catch (e) {
+    check('landscape: card shown', false, JSON.stringify(await cardState(page)));
+  }
+  noErrors(page, 'landscape page');
+  await page.context().close();
+
+  // 8. A photo of two paintings in the photo flow (the screenshot shows what the page
+  // does with it; outlining several at once is another change).
+  page = await newPage(cam, () => {
+    navigator.mediaDevices.getUserMedia = () => Promise.reject(new DOMException('Permission denied', 'NotAllowedError'));
+  });
+  await page.goto(base + '/');
+  await page.setInputFiles('#file', path.join(tmp, 'two.jpg'));
+  try {
+    await page.waitForFunction(() => !document.getElementById('card').hidden, null, { timeout: 15000 });
+    const t = await page.locator('#card-title').textContent();
+    check('two paintings in a photo: one of them is recognised', t === TITLE || t === 'Building', t);
+    await page.waitForFunction(() => document.getElementById('card-img').naturalWidth > 0, null, { timeout: 10000 });
+    await page.screenshot({ path: path.join(DOCS_IMG, 'visitor-two-paintings.png'), scale: 'css' });
+  } catch (e) {
+    check('two paintings in a photo: one of them is recognised', false, JSON.stringify(await cardState(page)));
+  }
+  noErrors(page, 'two paintings page');
+  await page.context().close();
+
+  // 9. The admin page (for the documentation).
+  const desk = await cam.newContext({ viewport: { width: 1100, height: 760 } });
+  page = await desk.newPage();
+  await page.goto(base + '/admin');
+  await page.fill('#token', TOKEN);
+  await page.click('#login-button');
+  try {
+    await page.waitForFunction(() => document.querySelectorAll('#list li img').length >= 2
+      && [...document.querySelectorAll('#list li img')].every((i) => i.complete && i.naturalWidth > 0), null, { timeout: 15000 });
+    check('admin page: logged in, exhibits listed', true);
+    // The quality scores take seconds each; the picture is nicer with them.
+    await page.waitForFunction(() => !/assessing/.test(document.getElementById('list').innerText), null, { timeout: 40000 })
+      .catch(() => console.log('admin page: quality still being assessed in the screenshot'));
+    await page.screenshot({ path: path.join(DOCS_IMG, 'admin.png'), fullPage: true });
+  } catch (e) {
+    check('admin page: logged in, exhibits listed', false, e.message);
+  }
+  await desk.close();
+
+  // 9b. Plain http from another machine (not localhost): no camera API at all; the
+  // page says HTTPS is needed and offers photos.
+  page = await newPage(cam);
+  await page.goto('http://museum.test:' + port + '/');
+  try {
+    await page.locator('#permission').waitFor({ state: 'visible', timeout: 10000 });
+    const t = await page.evaluate(() => ({ secure: isSecureContext, text: document.getElementById('permission').innerText,
+                                           upload: !!document.getElementById('upload').offsetParent }));
+    check('plain http from another address: the hint says phones need https://, and photos are offered',
+          !t.secure && /without HTTPS/.test(t.text) && /https:\/\//.test(t.text) && t.upload, JSON.stringify(t));
+  } catch (e) {
+    check('plain http from another address: the hint says HTTPS is needed', false, JSON.stringify(await cardState(page)));
+  }
+  noErrors(page, 'insecure page');
+  await page.context().close();
+
+  // 10. HTTPS with a self-signed certificate made here: the page loads and recognises.
+  const cert = path.join(tmp, 'cert.pem'), key = path.join(tmp, 'key.pem');
+  run('openssl', ['req', '-x509', '-newkey', 'ec', '-pkeyopt', 'ec_paramgen_curve:prime256v1', '-nodes', '-days', '2',
+                  '-subj', '/CN=127.0.0.1', '-addext', 'subjectAltName=IP:127.0.0.1', '-keyout', key, '-out', cert]);
+  const bad = spawnSync(MVKP, ['serve', db, '--port', '0', '--cert', cert, '--key', path.join(tmp, 'missing.pem')], { encoding: 'utf8' });
+  check('HTTPS: a missing key is a clear error and a non-zero exit',
+        bad.status !== 0 && /missing\.pem: no such file/.test(bad.stderr), bad.status + ' ' + bad.stderr);
+  const tlsPort = await startServer(db, [...site, '--cert', cert, '--key', key], true);
+  const tlsContext = await cam.newContext({ ...PHONE, ignoreHTTPSErrors: true });
+  page = await tlsContext.newPage();
+  page.errors = [];
+  page.on('pageerror', (e) => page.errors.push('uncaught: ' + e.message));
+  // Browsers refuse a service worker (the offline copy) from an untrusted certificate and
+  // say so ("An SSL certificate error occurred when fetching the script", or "An unknown
+  // error ..." when the page closes first); the page works without it.
+  page.on('console', (m) => {
+    if (m.type() === 'error' && !/error occurred when fetching the script/.test(m.text())) page.errors.push('console: ' + m.text());
+  });
+  await page.goto('https://127.0.0.1:' + tlsPort + '/');
+  try {
+    await waitTitle(page, TITLE, 30000);
+    const sec = await page.evaluate(() => ({ protocol: location.protocol, secure: isSecureContext, name: document.title }));
+    check('HTTPS: the page loads, is a secure context and recognises the painting',
+          sec.protocol === 'https:' && sec.secure && sec.name === SITE_NAME, JSON.stringify(sec));
+  } catch (e) {
+    check('HTTPS: the page recognises the painting', false, JSON.stringify(await cardState(page)));
+  }
+  noErrors(page, 'https page');
+  await tlsContext.close();
+
+  // 11. Offline: a card seen once still opens when the server is gone (service worker).
+  const offDb = path.join(tmp, 'offline.db');
+  fs.copyFileSync(db, offDb);
+  const offPort = await startServer(offDb, site, true);
+  const offServer = others[others.length - 1];
+  const offBase = 'http://127.0.0.1:' + offPort;
+  page = await newPage(cam);
+  page.allowedErrors = /ERR_CONNECTION_REFUSED|ERR_FAILED|Failed to fetch|FetchEvent/;
+  await page.goto(offBase + '/');
+  try {
+    await waitTitle(page, TITLE, 30000);
+    await page.waitForFunction(() => navigator.serviceWorker && navigator.serviceWorker.controller, null, { timeout: 15000 });
+    await page.click('#list-open');  // the list is kept too
+    await page.waitForFunction(() => document.querySelectorAll('#list-items .item').length === 2, null, { timeout: 10000 });
+    await page.click('#list-close');
+    let kept = [];
+    for (const end = Date.now() + 15000; Date.now() < end; await page.waitForTimeout(200)) {
+      kept = await page.evaluate(async () => (await (await caches.open('mvkp-visitor-v1')).keys())
+        .map((r) => new URL(r.url).pathname + new URL(r.url).search));
+      if (kept.includes('/api/exhibits/starry') && kept.some((u) => /^\/api\/exhibits\/starry\/image\?thumb=/.test(u))
+          && kept.includes('/api/exhibits') && kept.includes('/')) break;
+    }
+    check('offline copy: the page, the list, the card seen and its picture are kept',
+          ['/', '/app.js', '/ui.js', '/style.css', '/api/exhibits', '/api/exhibits/starry'].every((u) => kept.includes(u))
+          && kept.some((u) => /^\/api\/exhibits\/starry\/image\?thumb=/.test(u)), kept.join(' '));
+    await stopOther(offServer);
+    await page.reload();
+    await page.click('#list-open');
+    await page.waitForFunction(() => document.querySelectorAll('#list-items .item').length === 2, null, { timeout: 10000 });
+    const off = await page.evaluate(() => ({
+      banner: !document.getElementById('offline').hidden,
+      enabled: [...document.querySelectorAll('#list-items .item')].filter((b) => !b.disabled).map((b) => b.dataset.id),
+    }));
+    check('offline: the page loads, says it is offline, and offers the cards already seen',
+          off.banner && off.enabled.join() === 'starry', JSON.stringify(off));
+    await page.click('#list-items .item[data-id="starry"]');
+    await page.waitForFunction(() => document.getElementById('card-title').textContent === 'The Starry Night'
+      && document.getElementById('card-img').naturalWidth > 0, null, { timeout: 10000 });
+    check('offline: the card opens with its picture and description',
+          (await page.locator('#card-desc').textContent()) === DESCRIPTION);
+  } catch (e) {
+    check('offline card after the server is gone', false, e.message + ' ' + JSON.stringify(await cardState(page)));
+  }
+  noErrors(page, 'offline page');
+  await page.context().close();
+
+  const shots = ['visitor-portrait', 'visitor-landscape', 'visitor-no-camera', 'visitor-list', 'visitor-two-paintings', 'admin']
+    .map((n) => path.join(DOCS_IMG, n + '.png')).filter((f) => fs.existsSync(f));
+  run('/usr/bin/python3', [path.join(HERE, 'shrink_png.py'), ...shots]);
+  console.log('screenshots for the documentation:', DOCS_IMG);
 }
 
 let stopping = false;
@@ -414,6 +727,7 @@ try {
 } finally {
   for (const b of browsers) await b.close().catch(() => {});
   stopping = true;
+  for (const p of others) await stopOther(p);
   await stopServer();
 }
 console.log(`${passed} passed, ${failures.length} failed`);

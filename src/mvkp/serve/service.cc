@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <future>
 #include <list>
 #include <map>
@@ -35,6 +36,7 @@
 #include "mvkp/recognize/target_db.h"
 #include "mvkp/serve/encode.h"
 #include "mvkp/serve/internal/conn_deadline.h"
+#include "mvkp/serve/site.h"
 #include "mvkp/serve/web_assets.h"
 
 namespace mvkp::serve {
@@ -58,6 +60,8 @@ void ServiceOptions::Check() const {
           "serve: the admin token must be at least 16 characters");
   Require(token_failures_before_delay >= 1, ErrorCode::kInvalidArgument, "serve: token failures must be >= 1");
   Require(probe_words >= 0 && probe_words <= 65536, ErrorCode::kInvalidArgument, "serve: probe words must be in 0..65536");
+  Require(cert.empty() == key.empty(), ErrorCode::kInvalidArgument,
+          "serve: HTTPS needs both a certificate and its private key (--cert and --key)");
 }
 
 namespace {
@@ -153,7 +157,8 @@ RouteInfo RouteOf(const std::string& p) {
   }
   if (p == "/api/recognize") return {p, "POST"};
   if (p == "/api/exhibits") return {p, "GET, HEAD, POST"};
-  if (p == "/api/admin/check" || p == "/healthz" || p == "/metrics") return {p, "GET, HEAD"};
+  if (p == "/api/admin/check" || p == "/healthz" || p == "/metrics" || p == "/api/site" || p == "/api/site/logo")
+    return {p, "GET, HEAD"};
   if (p == "/admin" || p == "/admin.html" || p == "/admin.js" || p == "/admin.css") return {"/admin", "GET, HEAD"};
   if (FindWebAsset(p)) return {"/", "GET, HEAD"};
   return {"other", ""};
@@ -364,12 +369,59 @@ double Param(const httplib::Request& req, const char* name, double fallback) {
 
 void DefaultLog(const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); }
 
+// OpenSSL's reason for the last failure ("" when it gave none), clearing its queue.
+std::string SslReason() {
+  std::string out;
+  while (const unsigned long e = ::ERR_get_error()) {
+    char b[256];
+    ::ERR_error_string_n(e, b, sizeof b);
+    out = b;  // the last is the most specific
+  }
+  return out.empty() ? "" : " (" + out + ")";
+}
+
+// Checks the certificate and key as httplib's SSLServer will load them, so
+// that a bad file is an error naming it and saying what is wrong (httplib
+// only says "not valid").
+void CheckTlsFiles(const std::string& cert, const std::string& key) {
+  for (const std::string* f : {&cert, &key}) {
+    std::error_code ec;
+    const char* what = f == &cert ? "certificate" : "private key";
+    Require(std::filesystem::exists(*f, ec), ErrorCode::kIo, "serve: " + std::string(what) + " " + *f + ": no such file");
+    std::FILE* in = std::fopen(f->c_str(), "rb");
+    Require(in != nullptr, ErrorCode::kIo, "serve: " + std::string(what) + " " + *f + ": cannot be read");
+    std::fclose(in);
+  }
+  std::unique_ptr<SSL_CTX, void (*)(SSL_CTX*)> ctx(::SSL_CTX_new(::TLS_server_method()), ::SSL_CTX_free);
+  Require(ctx != nullptr, ErrorCode::kIo, "serve: cannot set up TLS" + SslReason());
+  ::ERR_clear_error();
+  Require(::SSL_CTX_use_certificate_chain_file(ctx.get(), cert.c_str()) == 1, ErrorCode::kInvalidArgument,
+          "serve: certificate " + cert + " is not a PEM certificate" + SslReason());
+  Require(::SSL_CTX_use_PrivateKey_file(ctx.get(), key.c_str(), SSL_FILETYPE_PEM) == 1, ErrorCode::kInvalidArgument,
+          "serve: private key " + key + " is not an unencrypted PEM private key, or not the certificate's" + SslReason());
+  Require(::SSL_CTX_check_private_key(ctx.get()) == 1, ErrorCode::kInvalidArgument,
+          "serve: private key " + key + " does not belong to certificate " + cert + SslReason());
+}
+
+// HTTP, or HTTPS when a certificate is given (checked first).
+std::unique_ptr<httplib::Server> MakeServer(const ServiceOptions& a) {
+  if (a.cert.empty()) return std::make_unique<httplib::Server>();
+  CheckTlsFiles(a.cert, a.key);
+  auto s = std::make_unique<httplib::SSLServer>(a.cert.c_str(), a.key.c_str());
+  Require(s->is_valid(), ErrorCode::kInvalidArgument,
+          "serve: cannot use certificate " + a.cert + " with key " + a.key + SslReason());
+  return s;
+}
+
 }  // namespace
 
 struct Service::Impl {
   explicit Impl(ServiceOptions o)
       : a(std::move(o)), cpu(a.threads), thumbs(a.thumb_cache_mb << 20), tokens(a.token_failures_before_delay) {
     if (!a.log) a.log = DefaultLog;
+    // Configuration errors first, before seconds of loading exhibits.
+    if (!a.site.empty()) site = LoadSite(a.site);
+    srv = MakeServer(a);
     if (a.max_inflight <= 0) a.max_inflight = 8 * a.threads;
     options = a.words ? RecognizerOptions::Words() : RecognizerOptions{};
     if (!a.words) options.probe_words = a.probe_words;
@@ -386,7 +438,8 @@ struct Service::Impl {
   // --- state -------------------------------------------------------------
   ServiceOptions a;
   RecognizerOptions options;
-  httplib::Server srv;
+  Site site;                          // GET /api/site
+  std::unique_ptr<httplib::Server> srv;  // an httplib::SSLServer with a certificate
   int listen_fd = -1;
   int port = -1;
   std::atomic<bool> stopping{false};
@@ -603,23 +656,23 @@ struct Service::Impl {
   // --- routes ----------------------------------------------------------------
 
   void Setup() {
-    srv.new_task_queue = [this] {
+    srv->new_task_queue = [this] {
       return new BoundedQueue(std::size_t(a.io_threads), std::size_t(4 * a.io_threads + a.max_inflight));
     };
-    srv.set_payload_max_length(a.max_body_mb << 20);
-    srv.set_keep_alive_max_count(20);
-    srv.set_keep_alive_timeout(2);
-    srv.set_read_timeout(a.timeout_s, 0);
-    srv.set_write_timeout(a.timeout_s, 0);
+    srv->set_payload_max_length(a.max_body_mb << 20);
+    srv->set_keep_alive_max_count(20);
+    srv->set_keep_alive_timeout(2);
+    srv->set_read_timeout(a.timeout_s, 0);
+    srv->set_write_timeout(a.timeout_s, 0);
     // No SO_REUSEPORT unless asked: a second server on the port must fail,
     // not share it. SO_REUSEADDR only lets a restart bind past TIME_WAIT.
-    srv.set_socket_options([this](socket_t sock) {
+    srv->set_socket_options([this](socket_t sock) {
       int yes = 1;
       ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
       if (a.reuse_port) ::setsockopt(sock, SOL_SOCKET, SO_REUSEPORT, &yes, sizeof(yes));
       listen_fd = int(sock);
     });
-    srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    srv->set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
       t_request_start = Clock::now();
       const RouteInfo r = RouteOf(req.path);
       if (!r.allow.empty()) {
@@ -638,7 +691,7 @@ struct Service::Impl {
       }
       return httplib::Server::HandlerResponse::Unhandled;
     });
-    srv.set_logger([this](const httplib::Request& req, const httplib::Response& res) {
+    srv->set_logger([this](const httplib::Request& req, const httplib::Response& res) {
       if (auto* d = deadline.load()) d->Idle(req.remote_addr, req.remote_port);
       const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t_request_start).count();
       const std::string route = RouteOf(req.path).label;
@@ -651,7 +704,7 @@ struct Service::Impl {
       metrics.Observe(route, res.status, timed ? ms / 1000.0 : 0.0);
       Log(line);
     });
-    srv.set_exception_handler([this](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+    srv->set_exception_handler([this](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
       try {
         std::rethrow_exception(ep);
       } catch (const std::exception& e) {
@@ -660,7 +713,7 @@ struct Service::Impl {
         Internal(res, "unknown exception");
       }
     });
-    srv.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
+    srv->set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
       if (!res.body.empty()) return;
       if (res.status == 404) return SendError(res, 404, "not found");
       if (res.status == 413) {
@@ -673,7 +726,7 @@ struct Service::Impl {
       if (res.status == 400) return SendError(res, 400, "malformed or incomplete request");
       SendError(res, res.status, "HTTP " + std::to_string(res.status));
     });
-    srv.set_default_headers({{"X-Content-Type-Options", "nosniff"}});
+    srv->set_default_headers({{"X-Content-Type-Options", "nosniff"}});
 
     // Every handler marks its connection busy (its request is read).
     auto H = [this](void (Impl::*fn)(const httplib::Request&, httplib::Response&)) {
@@ -682,19 +735,22 @@ struct Service::Impl {
         (this->*fn)(req, res);
       };
     };
-    srv.Get(R"(/|/index\.html|/app\.js|/style\.css|/admin|/admin\.html|/admin\.js|/admin\.css)", H(&Impl::Static));
-    srv.Get("/healthz", H(&Impl::Healthz));
-    srv.Get("/metrics", H(&Impl::MetricsRoute));
-    srv.Post("/api/recognize", H(&Impl::Recognize));
-    srv.Get("/api/exhibits", H(&Impl::List));
-    srv.Get(R"(/api/exhibits/([^/]+)/image)", H(&Impl::Image));
-    srv.Get(R"(/api/exhibits/([^/]+)/quality)", H(&Impl::Quality));
-    srv.Get("/api/admin/check", H(&Impl::AdminCheck));
-    srv.Get(R"(/api/exhibits/([^/]+))", H(&Impl::GetExhibit));
-    srv.Post("/api/exhibits", H(&Impl::AddExhibit));
-    srv.Put(R"(/api/exhibits/([^/]+))", H(&Impl::UpdateExhibit));
-    srv.Put(R"(/api/exhibits/([^/]+)/image)", H(&Impl::ReplaceImage));
-    srv.Delete(R"(/api/exhibits/([^/]+))", H(&Impl::DeleteExhibit));
+    srv->Get(R"(/|/index\.html|/app\.js|/style\.css|/ui\.js|/sw\.js|/admin|/admin\.html|/admin\.js|/admin\.css)",
+             H(&Impl::Static));
+    srv->Get("/api/site", H(&Impl::SiteRoute));
+    srv->Get("/api/site/logo", H(&Impl::SiteLogo));
+    srv->Get("/healthz", H(&Impl::Healthz));
+    srv->Get("/metrics", H(&Impl::MetricsRoute));
+    srv->Post("/api/recognize", H(&Impl::Recognize));
+    srv->Get("/api/exhibits", H(&Impl::List));
+    srv->Get(R"(/api/exhibits/([^/]+)/image)", H(&Impl::Image));
+    srv->Get(R"(/api/exhibits/([^/]+)/quality)", H(&Impl::Quality));
+    srv->Get("/api/admin/check", H(&Impl::AdminCheck));
+    srv->Get(R"(/api/exhibits/([^/]+))", H(&Impl::GetExhibit));
+    srv->Post("/api/exhibits", H(&Impl::AddExhibit));
+    srv->Put(R"(/api/exhibits/([^/]+))", H(&Impl::UpdateExhibit));
+    srv->Put(R"(/api/exhibits/([^/]+)/image)", H(&Impl::ReplaceImage));
+    srv->Delete(R"(/api/exhibits/([^/]+))", H(&Impl::DeleteExhibit));
   }
 
   void Static(const httplib::Request& req, httplib::Response& res) {
@@ -704,6 +760,17 @@ struct Service::Impl {
     res.set_header("Content-Security-Policy", kContentSecurityPolicy);
     res.set_header("Referrer-Policy", "same-origin");
     res.set_content(std::string(w->body), std::string(w->content_type).c_str());
+  }
+
+  void SiteRoute(const httplib::Request&, httplib::Response& res) {
+    res.set_header("Cache-Control", "no-cache");
+    res.set_content(Dump(site.ToJson()), "application/json");
+  }
+
+  void SiteLogo(const httplib::Request&, httplib::Response& res) {
+    if (site.logo.empty()) return SendError(res, 404, "this site has no logo (add \"logo\" to the --site file)");
+    res.set_header("Cache-Control", "no-cache");
+    res.set_content(site.logo, site.logo_type.c_str());
   }
 
   void Healthz(const httplib::Request&, httplib::Response& res) { res.set_content(Dump(Health()), "application/json"); }
@@ -1170,8 +1237,8 @@ int Service::Bind() {
   Impl& m = *impl_;
   if (m.port > 0) return m.port;
   int port = -1;
-  if (m.a.port == 0) port = m.srv.bind_to_any_port(m.a.host);
-  else if (m.srv.bind_to_port(m.a.host, m.a.port)) port = m.a.port;
+  if (m.a.port == 0) port = m.srv->bind_to_any_port(m.a.host);
+  else if (m.srv->bind_to_port(m.a.host, m.a.port)) port = m.a.port;
   Require(port > 0, ErrorCode::kIo,
           "cannot listen on " + m.a.host + ":" + std::to_string(m.a.port) + " (in use by another process, or not allowed)");
   // httplib listens with a backlog of 5: a burst of phones would be refused.
@@ -1199,7 +1266,7 @@ void Service::Run() {
   std::thread stopper([&m] {
     while (!m.stopping) std::this_thread::sleep_for(std::chrono::milliseconds(50));
     while (m.running || !m.listen_done) {
-      m.srv.stop();
+      m.srv->stop();
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
   });
@@ -1222,6 +1289,8 @@ void Service::Run() {
          {"threads", m.a.threads},
          {"io_threads", m.a.io_threads},
          {"admin", !m.a.admin_token.empty()},
+         {"https", !m.a.cert.empty()},
+         {"site", m.site.name},
          {"search", m.a.words ? "words" : "exact"}});
   {
     ConnectionDeadline deadline(m.port, std::chrono::milliseconds(std::int64_t(m.a.max_connection_s * 1000)),
@@ -1229,7 +1298,7 @@ void Service::Run() {
                                 std::chrono::milliseconds(250), std::chrono::seconds(5), &m.connections_cut);
     m.deadline = &deadline;
     m.running = true;
-    m.srv.listen_after_bind();
+    m.srv->listen_after_bind();
     m.running = false;
     m.listen_done = true;
     m.deadline = nullptr;

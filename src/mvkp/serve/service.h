@@ -19,7 +19,13 @@
 //        is off (403)
 //   GET  /healthz (status "ok", or "degraded" with what is wrong: exhibits
 //        skipped as unreadable, failing reloads), /metrics (Prometheus text)
-//   GET  /, /admin: the web client and the admin page (web/, linked in)
+//   GET  /api/site (the museum's name, intro, colours and logo URL, from
+//        --site or defaults: site.h), /api/site/logo
+//   GET  /, /admin: the web client and the admin page (web/, linked in);
+//        /sw.js, the client's service worker (offline cards)
+//
+// HTTPS: with `cert` and `key` the same routes, limits and deadlines are
+// served over TLS only (phones give the camera to https pages only).
 //
 // Hostile and broken input: request bodies and stored metadata are parsed
 // with depth and size limits (mvkp/db/json_limits.h); ids, links and fields
@@ -72,6 +78,8 @@ struct ServiceOptions {
   int probe_words = RecognizerOptions{}.probe_words;
   // One JSON line per event and request (default: stderr).
   std::function<void(const std::string&)> log;
+  std::string site;                   // site file (name, colours, logo, intro: site.h); "" for the defaults
+  std::string cert, key;              // PEM certificate (chain) and private key: HTTPS; both or neither
 
   // Throws Error(kInvalidArgument) naming the option that is out of range.
   void Check() const;
@@ -80,7 +88,9 @@ struct ServiceOptions {
 class Service {
  public:
   // Opens the database and loads its exhibits (a damaged one is skipped and
-  // reported). Throws Error for bad options or a database that cannot be read.
+  // reported), the site file and the certificate. Throws Error for bad
+  // options, a database that cannot be read, a bad site file (naming the key)
+  // or a certificate/key that cannot be used (naming the file and why).
   explicit Service(ServiceOptions options);
   ~Service();  // stops Run (in any thread) and waits for it to return
   Service(const Service&) = delete;

@@ -24,6 +24,7 @@
 #include "mvkp/core/error.h"
 #include "mvkp/db/target_store.h"
 #include "mvkp/recognize/target_db.h"
+#include "mvkp/serve/site.h"
 #include "test_samples.h"
 
 namespace mvkp::serve {
@@ -60,7 +61,7 @@ void Sql(const std::string& db, const std::string& sql, const std::string& blob_
 // A service on a copy of the suite's database, stopped and joined at the end.
 class Running {
  public:
-  explicit Running(ServiceOptions o) {
+  explicit Running(ServiceOptions o) : tls_(!o.cert.empty()) {
     o.port = 0;
     if (!o.log) o.log = [](const std::string&) {};
     service_ = std::make_unique<Service>(o);
@@ -79,7 +80,8 @@ class Running {
   }
   int port() const { return port_; }
   httplib::Client Client(int timeout_s = 10) const {
-    httplib::Client c("127.0.0.1", port_);
+    httplib::Client c((tls_ ? "https://127.0.0.1:" : "http://127.0.0.1:") + std::to_string(port_));
+    if (tls_) c.enable_server_certificate_verification(false);  // self-signed in the tests
     c.set_connection_timeout(timeout_s, 0);
     c.set_read_timeout(timeout_s, 0);
     c.set_write_timeout(timeout_s, 0);
@@ -100,6 +102,7 @@ class Running {
   }
 
  private:
+  bool tls_ = false;
   std::unique_ptr<Service> service_;
   std::thread thread_;
   int port_ = 0;
@@ -495,6 +498,7 @@ TEST_F(ServiceTest, PhonePhotosAreAcceptedAndAnsweredInTheirOwnPixels) {
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 400);
   EXPECT_NE(r->body.find("GIF images are not supported"), std::string::npos) << r->body;
+}
 
 // Issue 20: an exhibit's photo is replaced and retrained through the admin
 // API; a refused image leaves the old photo and model serving.
@@ -550,6 +554,172 @@ TEST_F(ServiceTest, ReplacingAnExhibitsPhotoRetrainsItAndABadOneKeepsTheOld) {
   r = c.Delete("/api/exhibits/starry/image", Admin());
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 405);
+}
+
+// Issue 20: the museum's name and colours for the visitor page.
+TEST_F(ServiceTest, TheSiteFileIsServedAndCheckedWithClearErrors) {
+  const std::string db = CopyDb("site");
+  {
+    Running s(Options(db));  // without --site: defaults, no logo
+    auto c = s.Client();
+    auto r = c.Get("/api/site");
+    ASSERT_TRUE(r && r->status == 200);
+    const Json j = Json::parse(r->body);
+    EXPECT_EQ(j["name"], "Museum guide");
+    EXPECT_TRUE(j["logo"].is_null());
+    EXPECT_GE(ContrastRatio(j["colors"]["text"], j["colors"]["background"]), 4.5);
+    r = c.Get("/api/site/logo");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 404);
+    r = c.Post("/api/site", "{}", "application/json");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 405);
+  }
+  const std::string dir = *dir_ + "/site";
+  fs::create_directories(dir);
+  std::vector<std::uint8_t> png;
+  cv::imencode(".png", cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 128, 255)), png);
+  std::ofstream(dir + "/logo.png", std::ios::binary).write(reinterpret_cast<const char*>(png.data()), std::streamsize(png.size()));
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir + "/" + name) << text;
+    return dir + "/" + name;
+  };
+  ServiceOptions o = Options(db);
+  o.site = write("good.json", R"({"name": "Musée Fabre", "intro": "Welcome", "logo": "logo.png",
+                                  "colors": {"background": "#FFF", "text": "#1a1a1a", "accent": "#b00020"}})");
+  {
+    Running s(o);
+    auto c = s.Client();
+    auto r = c.Get("/api/site");
+    ASSERT_TRUE(r && r->status == 200);
+    const Json j = Json::parse(r->body);
+    EXPECT_EQ(j["name"], "Musée Fabre");
+    EXPECT_EQ(j["intro"], "Welcome");
+    EXPECT_EQ(j["colors"]["background"], "#ffffff");  // normalised
+    EXPECT_EQ(j["colors"]["accent"], "#b00020");
+    EXPECT_EQ(j["logo"], "/api/site/logo");
+    r = c.Get("/api/site/logo");
+    ASSERT_TRUE(r && r->status == 200);
+    EXPECT_EQ(r->get_header_value("Content-Type"), "image/png");
+    EXPECT_EQ(r->body, std::string(png.begin(), png.end()));
+  }
+  // Each mistake is an error naming the file and what is wrong, before any exhibit is loaded.
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"{\"name\": \"A\", \"colour\": {}}", "unknown key \"colour\""},
+      {"{\"intro\": \"no name\"}", "\"name\" is required"},
+      {"{\"name\": \"  \"}", "\"name\" is empty"},
+      {"{\"name\": 5}", "\"name\" must be a string"},
+      {"{\"name\": \"A\", \"colors\": {\"text\": \"red\"}}", "colors.text must be \"#rgb\" or \"#rrggbb\""},
+      {"{\"name\": \"A\", \"colors\": {\"link\": \"#000\"}}", "unknown colour \"link\""},
+      {"{\"name\": \"A\", \"colors\": {\"text\": \"#777\", \"background\": \"#888\"}}", "below 4.5:1"},
+      {"{\"name\": \"A\", \"logo\": \"missing.png\"}", "no such file"},
+      {"{\"name\": \"A\", \"logo\": \"good.json\"}", "not a PNG or JPEG"},
+      {"{\"name\": \"A\"", "site"},
+      {"[1]", "must be a JSON object"},
+  };
+  for (std::size_t i = 0; i < bad.size(); ++i) {
+    o.site = write("bad" + std::to_string(i) + ".json", bad[i].first);
+    try {
+      Service service(o);
+      ADD_FAILURE() << "accepted " << bad[i].first;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+      EXPECT_NE(std::string(e.what()).find(bad[i].second), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(o.site), std::string::npos) << e.what();
+    }
+  }
+  o.site = dir + "/absent.json";
+  EXPECT_THROW(Service{o}, Error);
+}
+
+// A self-signed certificate and key for 127.0.0.1 (openssl, as the
+// documentation tells museums to make one).
+std::pair<std::string, std::string> MakeCertificate(const std::string& dir, const std::string& name) {
+  const std::string cert = dir + "/" + name + ".crt", key = dir + "/" + name + ".key";
+  const std::string cmd = "openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 2 -subj /CN=127.0.0.1"
+                          " -addext subjectAltName=IP:127.0.0.1 -keyout '" + key + "' -out '" + cert + "' 2>/dev/null";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  return {cert, key};
+}
+
+TEST_F(ServiceTest, HttpsServesTheSameRoutesAndLimits) {
+  const std::string dir = *dir_ + "/tls";
+  fs::create_directories(dir);
+  const auto [cert, key] = MakeCertificate(dir, "a");
+  ServiceOptions o = Options(CopyDb("https"));
+  o.cert = cert;
+  o.key = key;
+  o.read_deadline_s = 1;
+  o.timeout_s = 60;  // so that only the deadline can cut the silent sockets below
+  Running s(o);
+  auto c = s.Client();
+  auto r = c.Post("/api/recognize", StarryJpeg(), "image/jpeg");
+  ASSERT_TRUE(r) << httplib::to_string(r.error());
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(Json::parse(r->body)["found"][0]["id"], "starry");
+  r = c.Get("/");
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_NE(r->body.find("/ui.js"), std::string::npos);
+  EXPECT_FALSE(r->get_header_value("Content-Security-Policy").empty());
+  r = c.Get("/sw.js");
+  ASSERT_TRUE(r && r->status == 200);
+  r = c.Delete("/api/recognize");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 405);
+  r = c.Get("/api/admin/check", {{"Authorization", "Bearer wrong-token-of-16-chars"}});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 401);
+  r = c.Get("/api/admin/check", Admin());
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 204);
+  // Plain HTTP to the HTTPS port gets no HTTP answer.
+  httplib::Client plain("127.0.0.1", s.port());
+  plain.set_read_timeout(5, 0);
+  auto p = plain.Get("/healthz");
+  EXPECT_TRUE(!p || p->status != 200);
+  // Sockets that never start the TLS handshake are cut by the read deadline.
+  std::vector<int> silent;
+  for (int i = 0; i < 4; ++i) silent.push_back(Connect(s.port()));
+  double cut = 0;
+  for (int i = 0; i < 60 && cut < 4; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    cut = s.Metric("mvkp_connections_cut_total");
+  }
+  EXPECT_GE(cut, 4);
+  // At most a TLS alert, never an HTTP answer.
+  for (int fd : silent) EXPECT_EQ(ReadSome(fd).find("HTTP/"), std::string::npos);
+  for (int fd : silent) ::close(fd);
+  EXPECT_EQ(s.Health()["status"], "ok");
+}
+
+TEST_F(ServiceTest, AMissingOrBadCertificateIsAClearError) {
+  const std::string dir = *dir_ + "/badtls";
+  fs::create_directories(dir);
+  const auto [cert, key] = MakeCertificate(dir, "a");
+  const auto [cert2, key2] = MakeCertificate(dir, "b");
+  std::ofstream(dir + "/junk.pem") << "-----BEGIN CERTIFICATE-----\nnot base64\n-----END CERTIFICATE-----\n";
+  ServiceOptions o = Options(CopyDb("badtls"));
+  auto expect = [&](const std::string& c, const std::string& k, ErrorCode code, const std::string& says) {
+    o.cert = c;
+    o.key = k;
+    try {
+      Service service(o);
+      ADD_FAILURE() << "accepted cert " << c << " key " << k;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), code) << e.what();
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  expect(dir + "/none.crt", key, ErrorCode::kIo, dir + "/none.crt: no such file");
+  expect(cert, dir + "/none.key", ErrorCode::kIo, dir + "/none.key: no such file");
+  expect(dir + "/junk.pem", key, ErrorCode::kInvalidArgument, "certificate " + dir + "/junk.pem is not a PEM certificate");
+  expect(key, key, ErrorCode::kInvalidArgument, "is not a PEM certificate");
+  expect(cert, cert, ErrorCode::kInvalidArgument, "private key " + cert + " is not");
+  expect(cert, key2, ErrorCode::kInvalidArgument, "private key " + key2);
+  expect(cert, "", ErrorCode::kInvalidArgument, "both a certificate and its private key");
+  o.cert = cert2;
+  o.key = key2;
+  EXPECT_NO_THROW(Service{o});
 }
 
 }  // namespace
