@@ -161,6 +161,55 @@ err = open('$T/err').read().splitlines()
 sys.exit(0 if $RC == 1 and len(err) == 1 and 'kg.json: entry 2' in err[0] and 'nope.jpg' in err[0] else 1)"
 check "JSON --keep-going: the good entry imported" test "$(count "$KG")" -eq 3
 
+# Duplicates (issue 20): an exact copy and a cropped, brightened, smaller copy
+# of an exhibit are refused by name (two copies take each other's votes and
+# neither is found); --allow-duplicate adds one; distinct images pass.
+DUP=$T/dup.db
+"$MVKP" db create "$DUP" >/dev/null
+expect_ok "dup: first exhibit" "$MVKP" db add "$DUP" --id starry --image "$SAMPLES/starry_night.jpg"
+expect_fail "dup: an exact copy is refused" "looks like 'starry'" \
+  "$MVKP" db add "$DUP" --id starry-copy --image "$SAMPLES/starry_night.jpg"
+$PY - "$SAMPLES/starry_night.jpg" "$T/starry_crop.jpg" <<'PYEOF'
+import sys, cv2, numpy as np
+img = cv2.imread(sys.argv[1])
+h, w = img.shape[:2]
+crop = img[int(0.1 * h):int(0.85 * h), int(0.05 * w):int(0.8 * w)]
+crop = np.clip(crop.astype(np.float32) * 1.3 + 20, 0, 255).astype(np.uint8)
+crop = cv2.resize(crop, None, fx=0.7, fy=0.7, interpolation=cv2.INTER_AREA)
+cv2.imwrite(sys.argv[2], crop, [cv2.IMWRITE_JPEG_QUALITY, 80])
+PYEOF
+expect_fail "dup: a cropped, brighter, smaller copy is refused" "looks like 'starry'" \
+  "$MVKP" db add "$DUP" --id starry-crop --image "$T/starry_crop.jpg"
+check "dup: refused copies stored nothing" test "$(count "$DUP")" -eq 1
+for s in coffee fruits baboon astronaut building; do
+  expect_ok "dup: distinct $s is added" "$MVKP" db add "$DUP" --id "$s" --image "$SAMPLES/$s.jpg"
+done
+expect_ok "dup: --allow-duplicate adds a copy on purpose" \
+  "$MVKP" db add "$DUP" --id starry-crop --image "$T/starry_crop.jpg" --allow-duplicate
+mkdir -p "$T/duplist"
+cp "$SAMPLES/coffee.jpg" "$T/duplist/coffee-again.jpg"
+cp "$SAMPLES/baboon.jpg" "$T/duplist/b1.jpg"
+cp "$SAMPLES/baboon.jpg" "$T/duplist/b2.jpg"
+"$MVKP" db create "$T/dup2.db" >/dev/null
+"$MVKP" db add "$T/dup2.db" --id coffee --image "$SAMPLES/coffee.jpg" >/dev/null
+printf 'id,image\nb1,b1.jpg\nb2,b2.jpg\nc2,coffee-again.jpg\n' >"$T/duplist/l.csv"
+expect_fail "dup: import names the row that repeats an earlier row" "l.csv:3 (id 'b2')" \
+  "$MVKP" db import "$T/dup2.db" "$T/duplist/l.csv"
+check "dup: all-or-none import added nothing" test "$(count "$T/dup2.db")" -eq 1
+run "$MVKP" db import "$T/dup2.db" "$T/duplist/l.csv" --keep-going
+check "dup: --keep-going imports the distinct row, exit 1" test "$RC" -eq 1 -a "$(count "$T/dup2.db")" -eq 2
+check "dup: both duplicate rows are named" grep -q "l.csv:4 (id 'c2').*looks like 'coffee'" "$T/err"
+
+# db set (issue 20): metadata changes, the model stays; bad values are refused.
+expect_ok "db set" "$MVKP" db set "$DUP" coffee --title "Black coffee" --year 2011
+check "db set: new title and year, other fields kept" $PY -c "
+import json, subprocess, sys
+j = {t['id']: t for t in json.loads(subprocess.check_output(['$MVKP', 'db', 'list', '$DUP', '--json']))}
+sys.exit(0 if j['coffee']['title'] == 'Black coffee' and j['coffee']['year'] == '2011' else 1)"
+expect_fail "db set: unknown id" "no target 'nope'" "$MVKP" db set "$DUP" nope --title x
+expect_fail "db set: a bad link" "url" "$MVKP" db set "$DUP" coffee --url "javascript:alert(1)"
+expect_fail "db set: nothing to change" "nothing to change" "$MVKP" db set "$DUP" coffee
+
 # A process killed while adding leaves the database readable and consistent.
 for delay in 0.05 0.15 0.3 0.5; do
   "$MVKP" db add "$DB" --id "killed$delay" --image "$SAMPLES/building.jpg" >/dev/null 2>&1 &

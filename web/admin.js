@@ -82,9 +82,58 @@
       if (r.status === 401 && path !== '/api/admin/check') {
         logout('The token was refused: log in again.');
       }
-      throw new ApiError(r.status, why);
+      const err = new ApiError(r.status, why);
+      err.data = data;
+      throw err;
     }
     return data;
+  }
+
+  // Phone photos (12-48 MP) are shrunk in the browser before upload: training
+  // uses far fewer pixels, and the upload is a fraction of the size. Images
+  // already small, and anything the browser cannot decode, go as they are
+  // (the server then names the problem).
+  const UPLOAD_MAX_SIDE = 2048;
+  async function downscaled(file) {
+    if (!file || typeof createImageBitmap !== 'function') return file;
+    let bmp;
+    try {
+      bmp = await createImageBitmap(file);
+    } catch (e) {
+      return file;
+    }
+    const side = Math.max(bmp.width, bmp.height);
+    if (side <= UPLOAD_MAX_SIDE) {
+      bmp.close();
+      return file;
+    }
+    const k = UPLOAD_MAX_SIDE / side;
+    const c = document.createElement('canvas');
+    c.width = Math.round(bmp.width * k);
+    c.height = Math.round(bmp.height * k);
+    const g = c.getContext('2d');
+    g.imageSmoothingQuality = 'high';
+    g.drawImage(bmp, 0, 0, c.width, c.height);
+    bmp.close();
+    const blob = await new Promise((ok) => c.toBlob(ok, 'image/jpeg', 0.92));
+    if (!blob) return file;
+    return new File([blob], file.name.replace(/\.[^.]*$/, '') + '.jpg', { type: 'image/jpeg' });
+  }
+
+  // POST/PUT of an exhibit's photo; when the server answers 409 because the
+  // photo shows another exhibit, the curator decides (adding it anyway makes
+  // both unrecognisable, so the default is no).
+  async function sendPhoto(method, path, fd) {
+    try {
+      return await api(method, path, fd);
+    } catch (e) {
+      if (e.status !== 409 || !e.data || !Array.isArray(e.data.duplicates)) throw e;
+      const names = e.data.duplicates.map((d) => '“' + d.id + '”').join(', ');
+      if (!window.confirm('This photo looks like ' + names + ', already an exhibit. Two copies of one picture ' +
+                          'make both unrecognisable. Add it anyway?')) throw e;
+      fd.append('allow_duplicate', '1');
+      return api(method, path, fd);
+    }
   }
 
   let messageTimer = 0;
@@ -371,11 +420,12 @@
       const f = input.files[0];
       input.remove();
       if (!f) return;
-      const fd = new FormData();
-      fd.append('image', f, f.name);
       busy(button, true, 'Training…');
       try {
-        const updated = await api('PUT', exhibitPath(x.id) + '/image', fd);
+        const fd = new FormData();
+        const small = await downscaled(f);
+        fd.append('image', small, small.name);
+        const updated = await sendPhoto('PUT', exhibitPath(x.id) + '/image', fd);
         if (updated.quality) {
           updated.quality.added_at = updated.added_at;
           quality.set(updated.id, updated.quality);
@@ -520,7 +570,8 @@
         if (!r.id || !r.image) throw new Error('needs an id and an image');
         if (!image) throw new Error('photo “' + r.image + '” was not chosen (or is not in the ZIP)');
         const fd = new FormData();
-        fd.append('image', image, String(r.image).split('/').pop());
+        const small = await downscaled(image);
+        fd.append('image', small, small === image ? String(r.image).split('/').pop() : small.name);
         for (const k of ['id', 'title', 'artist', 'year', 'url']) fd.append(k, (r[k] || '').trim());
         fd.append('meta', (r.meta || '').trim() || '{}');
         const x = await api('POST', '/api/exhibits', fd);
@@ -576,7 +627,8 @@
       return say('Meta must be a JSON object, e.g. {"width_m": 0.74}', 'error');
     }
     const fd = new FormData();
-    fd.append('image', file, file.name);
+    const small = await downscaled(file);
+    fd.append('image', small, small.name);
     for (const k of ['id', 'title', 'artist', 'year', 'url']) fd.append(k, $('add-' + k).value.trim());
     fd.append('meta', metaText);
     const b = $('add-button');
@@ -585,7 +637,7 @@
     busy(b, true, 'Training and assessing…');
     form.querySelectorAll('input, textarea').forEach((i) => { i.disabled = true; });
     try {
-      const x = await api('POST', '/api/exhibits', fd);
+      const x = await sendPhoto('POST', '/api/exhibits', fd);
       if (x.quality) {
         x.quality.added_at = x.added_at;
         quality.set(x.id, x.quality);

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <memory>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -30,17 +31,29 @@ namespace fs = std::filesystem;
 
 struct DbArgs {
   std::string db, id, image, title, artist, year, url, meta = "{}", list, output;
-  bool json = false, force = false, keep_going = false;
+  // db set: the fields given (unset ones keep their value).
+  std::optional<std::string> set_title, set_artist, set_year, set_url, set_meta;
+  bool json = false, force = false, keep_going = false, allow_duplicate = false;
   double timeout_s = BackupOptions{}.timeout_s;
   TrainOptions train = DbTrainDefaults();
 };
 
-// Trains one target and packs it as a store record.
-TargetRecord MakeRecord(TargetInfo info, const std::string& image_path, const TrainOptions& train) {
-  return MakeTargetRecord(std::move(info), ReadFileBytes(image_path), LoadImageGray(image_path), train, image_path);
-}
 
 using serve::InfoJson;
+
+// The database's targets in a recogniser, to find duplicates of new images.
+Recognizer LoadForDuplicates(const TargetStore& store, const std::string& db) {
+  Recognizer rec;
+  LoadTargets(store, rec, db, [](const TargetInfo&, int, int) {});
+  return rec;
+}
+
+// Error text for an image that shows targets already there (or earlier rows).
+std::string DuplicateError(const std::string& image, const std::vector<DuplicateOf>& dups) {
+  return image + " " + DescribeDuplicates(dups) +
+         ", already there: two copies of one picture take each other's votes and neither is found; "
+         "add it anyway with --allow-duplicate";
+}
 
 int RunCreate(DbArgs& a) {
   TargetStore::Create(a.db);
@@ -60,12 +73,17 @@ int RunAdd(DbArgs& a) {
   info.url = a.url;
   info.meta = a.meta;
   ValidateTargetInfo(info, /*new_id=*/true, a.db);  // before seconds of training
+  const cv::Mat gray = LoadImageGray(a.image);
+  if (!a.allow_duplicate) {
+    const auto dups = FindDuplicates(LoadForDuplicates(store, a.db), gray);
+    Require(dups.empty(), ErrorCode::kInvalidArgument, DuplicateError(a.image, dups));
+  }
   Timer t;
-  const TargetRecord r = MakeRecord(info, a.image, a.train);
+  const TargetRecord r = MakeTargetRecord(info, ReadFileBytes(a.image), gray, a.train, a.image);
   const double train_ms = t.ElapsedMs();
   store.Add(r);
-  std::printf("added '%s' (%dx%d) to %s: model %.1f KB, trained in %.0f ms, %zu targets\n", a.id.c_str(), r.info.width,
-              r.info.height, a.db.c_str(), r.model.size() / 1024.0, train_ms, store.Count());
+  std::printf("added '%s' (%dx%d) to %s: model %.1f KB, trained in %.0f ms, %s\n", a.id.c_str(), r.info.width,
+              r.info.height, a.db.c_str(), r.model.size() / 1024.0, train_ms, Count(store.Count(), "target").c_str());
   return 0;
 }
 
@@ -79,7 +97,7 @@ struct RowFailure {
 // if any row failed.
 int ImportDone(const DbArgs& a, const TargetStore& store, std::size_t imported, std::size_t rows,
                const std::vector<RowFailure>& failed, double ms) {
-  for (const auto& f : failed) std::fprintf(stderr, "mvkp: error: %s: %s\n", f.where.c_str(), f.error.c_str());
+  for (const auto& f : failed) std::fprintf(stderr, "mvkp db import: %s: %s\n", f.where.c_str(), f.error.c_str());
   std::printf("imported %zu of %zu targets into %s in %.1f s (%zu targets now)%s\n", imported, rows, a.db.c_str(),
               ms / 1000, store.Count(), failed.empty() ? "" : (", " + std::to_string(failed.size()) + " failed").c_str());
   return failed.empty() ? 0 : 1;
@@ -190,11 +208,24 @@ int RunImport(DbArgs& a) {
   std::vector<TargetRecord> records;
   std::vector<std::size_t> index;  // records[k] is list[index[k]]
   Timer t;
+  // Duplicates of the database's targets and of earlier rows.
+  Recognizer rec;
+  if (!a.allow_duplicate) rec = LoadForDuplicates(store, a.db);
   for (std::size_t i = 0; i < list.size(); ++i) {
     if (!ok[i]) continue;
     try {
-      records.push_back(MakeRecord(list[i].first, list[i].second, a.train));
+      const std::string& path = list[i].second;
+      const cv::Mat gray = LoadImageGray(path);
+      if (!a.allow_duplicate) {
+        const auto dups = FindDuplicates(rec, gray);
+        Require(dups.empty(), ErrorCode::kInvalidArgument, DuplicateError(path, dups));
+      }
+      records.push_back(MakeTargetRecord(list[i].first, ReadFileBytes(path), gray, a.train, path));
       index.push_back(i);
+      if (!a.allow_duplicate) {
+        const TargetRecord& r = records.back();
+        rec.Add(r.info.id, DeserializeModel(r.model.data(), r.model.size(), path));
+      }
     } catch (const Error& e) {
       fail(i, e.what());
     }
@@ -227,17 +258,36 @@ int RunList(DbArgs& a) {
     std::cout << j.dump() << std::endl;
     return 0;
   }
-  std::printf("%s: %zu targets (schema %d)\n", a.db.c_str(), list.size(), store.schema_version());
+  std::printf("%s: %s (schema %d)\n", a.db.c_str(), Count(list.size(), "target").c_str(), store.schema_version());
   for (const auto& i : list)
     std::printf("  %-24s %5dx%-5d %s%s%s\n", i.id.c_str(), i.width, i.height, i.title.c_str(),
                 i.artist.empty() ? "" : " - ", i.artist.c_str());
   return 0;
 }
 
+// Metadata only: the model and image stay (a running server sees the change
+// on its next poll of the database).
+int RunSet(DbArgs& a) {
+  TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
+  Require(store.Contains(a.id), ErrorCode::kInvalidArgument, a.db + ": no target '" + a.id + "'");
+  Require(a.set_title || a.set_artist || a.set_year || a.set_url || a.set_meta, ErrorCode::kInvalidArgument,
+          "nothing to change: give --title, --artist, --year, --url or --meta");
+  TargetInfo info = store.Get(a.id, /*with_image=*/false).info;
+  if (a.set_title) info.title = *a.set_title;
+  if (a.set_artist) info.artist = *a.set_artist;
+  if (a.set_year) info.year = *a.set_year;
+  if (a.set_url) info.url = *a.set_url;
+  if (a.set_meta) info.meta = *a.set_meta;
+  ValidateTargetInfo(info, /*new_id=*/false, a.db + ": target '" + a.id + "'");
+  store.UpdateInfo(info);
+  std::printf("updated '%s' in %s\n", a.id.c_str(), a.db.c_str());
+  return 0;
+}
+
 int RunRemove(DbArgs& a) {
   TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
   Require(store.Remove(a.id), ErrorCode::kInvalidArgument, a.db + ": no target '" + a.id + "'");
-  std::printf("removed '%s' from %s (%zu targets left)\n", a.id.c_str(), a.db.c_str(), store.Count());
+  std::printf("removed '%s' from %s (%s left)\n", a.id.c_str(), a.db.c_str(), Count(store.Count(), "target").c_str());
   return 0;
 }
 
@@ -271,7 +321,7 @@ int RunBackup(DbArgs& a) {
 }  // namespace
 
 void RegisterDb(CLI::App& app, int* code) {
-  auto* db = app.add_subcommand("db", "Target database: create, add, import, list, remove, export, backup");
+  auto* db = app.add_subcommand("db", "Target database: create, add, import, list, set, remove, export, backup");
   db->require_subcommand(1);
   auto a = std::make_shared<DbArgs>();
   auto* c = db->add_subcommand("create", "Create an empty target database");
@@ -287,6 +337,8 @@ void RegisterDb(CLI::App& app, int* code) {
   add->add_option("--year", a->year, "year");
   add->add_option("--url", a->url, "link to more information");
   add->add_option("--meta", a->meta, "free-form JSON object")->capture_default_str();
+  add->add_flag("--allow-duplicate", a->allow_duplicate,
+                 "add it even if it shows a target already there (both then go unrecognised)");
   AddTrainOptions(add, &a->train);
   add->callback([a, code] { *code = RunAdd(*a); });
 
@@ -297,6 +349,8 @@ void RegisterDb(CLI::App& app, int* code) {
       ->required();
   imp->add_flag("--keep-going", a->keep_going,
                 "import the rows that work, report every failing row (exit 1 if any failed)");
+  imp->add_flag("--allow-duplicate", a->allow_duplicate,
+                "import rows that show a target already there or an earlier row's");
   AddTrainOptions(imp, &a->train);
   imp->callback([a, code] { *code = RunImport(*a); });
 
@@ -304,6 +358,16 @@ void RegisterDb(CLI::App& app, int* code) {
   list->add_option("DB", a->db, "database file")->required();
   list->add_flag("--json", a->json, "a JSON array");
   list->callback([a, code] { *code = RunList(*a); });
+
+  auto* set = db->add_subcommand("set", "Change a target's title, artist, year, link or meta (not its image)");
+  set->add_option("DB", a->db, "database file")->required();
+  set->add_option("ID", a->id, "target id")->required();
+  set->add_option("--title", a->set_title, "new title");
+  set->add_option("--artist", a->set_artist, "new artist");
+  set->add_option("--year", a->set_year, "new year");
+  set->add_option("--url", a->set_url, "new link (http(s)://)");
+  set->add_option("--meta", a->set_meta, "new free-form JSON object (replaces the old)");
+  set->callback([a, code] { *code = RunSet(*a); });
 
   auto* rm = db->add_subcommand("remove", "Remove a target (one transaction)");
   rm->add_option("DB", a->db, "database file")->required();

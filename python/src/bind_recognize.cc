@@ -291,6 +291,15 @@ void BindRecognize(py::module_& m) {
               py::gil_scoped_release release;
               cv::Mat gray = img.mat;
               if (gray.channels() == 3) cv::cvtColor(gray, gray, cv::COLOR_BGR2GRAY);
+              if (!allow_duplicate) {
+                Recognizer rec;
+                LoadTargets(store, rec, d->path, [](const TargetInfo&, int, int) {});
+                const auto dups = FindDuplicates(rec, gray);
+                Require(dups.empty(), ErrorCode::kInvalidArgument,
+                        "image " + DescribeDuplicates(dups) + ", already in " + d->path +
+                            ": two copies of one picture take each other's votes and neither is found "
+                            "(allow_duplicate=True adds it anyway)");
+              }
               if (encode_png) cv::imencode(".png", img.mat, bytes);
               r = MakeTargetRecord(info, std::move(bytes), gray, topt, "image");
             }
@@ -298,10 +307,34 @@ void BindRecognize(py::module_& m) {
           },
           py::arg("id"), py::arg("image"), py::kw_only(), py::arg("title") = "", py::arg("artist") = "",
           py::arg("year") = "", py::arg("url") = "", py::arg("meta") = py::none(), py::arg("image_bytes") = py::none(),
-          py::arg("options") = py::none(),
+          py::arg("allow_duplicate") = false, py::arg("options") = py::none(),
           "Trains a target from `image` and adds it, as `mvkp db add` (its training defaults: max_object_side=320, "
           "other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. "
-          "image_bytes: the encoded image to store (default: `image` as PNG).")
+          "image_bytes: the encoded image to store (default: `image` as PNG). An image that shows a target "
+          "already there raises InvalidArgumentError unless allow_duplicate=True.")
+      .def(
+          "update",
+          [](PyDatabase& d, const std::string& id, std::optional<std::string> title, std::optional<std::string> artist,
+             std::optional<std::string> year, std::optional<std::string> url, py::handle meta) {
+            TargetStore& store = d.get();
+            Require(d.writable, ErrorCode::kInvalidArgument, d.path + ": opened read-only (use writable=True)");
+            Require(store.Contains(id), ErrorCode::kInvalidArgument, d.path + ": no target '" + id + "'");
+            TargetInfo info = store.Get(id, false).info;
+            if (title) info.title = *title;
+            if (artist) info.artist = *artist;
+            if (year) info.year = *year;
+            if (url) info.url = *url;
+            if (!meta.is_none())
+              info.meta = py::isinstance<py::str>(meta) ? meta.cast<std::string>()
+                                                        : py::module_::import("json").attr("dumps")(meta).cast<std::string>();
+            ValidateTargetInfo(info, /*new_id=*/false, d.path + ": target '" + id + "'");
+            store.UpdateInfo(info);
+            return store.Get(id, false).info;
+          },
+          py::arg("id"), py::kw_only(), py::arg("title") = py::none(), py::arg("artist") = py::none(),
+          py::arg("year") = py::none(), py::arg("url") = py::none(), py::arg("meta") = py::none(),
+          "Changes a target's metadata, as `mvkp db set` (fields left None keep their value; meta replaces the old "
+          "object). Returns the new TargetInfo. The model and image stay.")
       .def("remove", [](PyDatabase& d, const std::string& id) { return d.get().Remove(id); }, py::arg("id"),
            "Removes a target; False if there was none.")
       .def(

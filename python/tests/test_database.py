@@ -56,3 +56,25 @@ def test_database_backup(tmp_path, target):
         assert copy.image_bytes("starry") == mvkp.Database(path).image_bytes("starry")
     with pytest.raises(ValueError, match="closed"):
         db.backup(str(tmp_path / "x.db"))
+
+
+def test_database_update_and_duplicates(tmp_path, target):
+    path = str(tmp_path / "g.db")
+    with mvkp.Database.create(path) as db:
+        db.add("starry", target, title="The Starry Night", views=40)
+        # A brighter crop of the same picture shows exhibit "starry": refused by name.
+        h, w = target.shape
+        crop = np.clip(target[h // 10: h * 9 // 10, w // 8: w * 7 // 8].astype(np.float32) * 1.25 + 15, 0, 255)
+        with pytest.raises(mvkp.InvalidArgumentError, match="looks like 'starry'"):
+            db.add("starry-crop", np.ascontiguousarray(crop.astype(np.uint8)), views=40)
+        assert db.ids() == ["starry"]
+        db.add("starry-crop", np.ascontiguousarray(crop.astype(np.uint8)), views=40, allow_duplicate=True)
+        assert db.ids() == ["starry", "starry-crop"]
+        info = db.update("starry", title="Starry Night", meta={"room": 5})
+        assert info.title == "Starry Night" and info.meta == {"room": 5}
+        assert db.info("starry").title == "Starry Night"
+        assert db.info("starry").year == ""  # fields left None keep their value
+        with pytest.raises(mvkp.InvalidArgumentError, match="no target 'nope'"):
+            db.update("nope", title="x")
+        with pytest.raises(mvkp.InvalidArgumentError, match="url"):
+            db.update("starry", url="javascript:alert(1)")

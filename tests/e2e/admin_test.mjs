@@ -102,7 +102,7 @@ with zipfile.ZipFile(tmp + '/bulk.zip', 'w', zipfile.ZIP_DEFLATED) as z:
     z.write(samples + '/coffee.jpg', 'bulk/photos/coffee.jpg')
     z.write(samples + '/fruits.jpg', 'bulk/photos/fruits.jpg')
     z.writestr('bulk/photos/flat.png', png)
-open(tmp + '/loose.csv', 'w').write('id,image,title\\nl-baboon,baboon.jpg,Baboon\\nl-dup,baboon.jpg,Dup\\nl-dup,baboon.jpg,Again\\n')
+open(tmp + '/loose.csv', 'w').write('id,image,title\\nl-baboon,baboon.jpg,Baboon\\nl-astro,astronaut.jpg,Astronaut\\nl-astro,building.jpg,Again\\nl-copy,baboon.jpg,Copy\\n')
 `, tmp, SAMPLES]);
 
 try {
@@ -143,17 +143,22 @@ try {
   check('ZIP import: quoted CSV field kept', coffee.title === 'Coffee, black' && coffee.year === '2010', JSON.stringify(coffee));
 
   // Bulk import from a CSV with its photo chosen beside it.
-  await page.setInputFiles('#bulk-files', [path.join(tmp, 'loose.csv'), path.join(SAMPLES, 'baboon.jpg')]);
+  await page.setInputFiles('#bulk-files', [path.join(tmp, 'loose.csv'), path.join(SAMPLES, 'baboon.jpg'),
+    path.join(SAMPLES, 'astronaut.jpg'), path.join(SAMPLES, 'building.jpg')]);
   await page.click('#bulk-button');
   await page.waitForFunction(() => /loose\.csv: \d+ added/.test(document.getElementById('bulk-summary').textContent));
   const rows2 = await page.$$eval('#bulk-rows li', (ls) => ls.map((l) => ({ cls: l.className, text: l.textContent })));
-  check('CSV + photos: two added, the duplicate id refused by the server',
-    rows2.length === 3 && rows2[0].cls === 'ok' && rows2[1].cls === 'ok' && rows2[2].cls === 'error' &&
-    rows2[2].text.includes('already exists'), JSON.stringify(rows2));
+  check('CSV + photos: two added, the duplicate id and the duplicate photo refused by the server',
+    rows2.length === 4 && rows2[0].cls === 'ok' && rows2[1].cls === 'ok' && rows2[2].cls === 'error' &&
+    rows2[2].text.includes('already exists') && rows2[3].cls === 'error' && rows2[3].text.includes("looks like 'l-baboon'"),
+    JSON.stringify(rows2));
 
   // Replace a photo.
   const before = await (await api('/api/exhibits/starry')).json();
   await page.waitForSelector('li[data-id="starry"]');
+  // The coffee photo is exhibit z-coffee's: the page asks before sending it anyway.
+  let dialog = '';
+  page.once('dialog', (d) => { dialog = d.message(); d.accept(); });
   const chooser = page.waitForEvent('filechooser');
   await page.click('li[data-id="starry"] >> text=Replace photo');
   await (await chooser).setFiles(path.join(SAMPLES, 'coffee.jpg'));
@@ -161,6 +166,7 @@ try {
   const after = await (await api('/api/exhibits/starry')).json();
   const img = Buffer.from(await (await api('/api/exhibits/starry/image')).arrayBuffer());
   check('replace photo: the stored image is the new file', img.equals(fs.readFileSync(path.join(SAMPLES, 'coffee.jpg'))));
+  check('replace photo: a photo of another exhibit is confirmed first', dialog.includes('z-coffee'), dialog);
   check('replace photo: id and title stay', after.id === 'starry' && after.title === before.title, JSON.stringify(after));
   check('replace photo: the card is still listed', (await page.$('li[data-id="starry"]')) !== null);
   check('no script errors', errors.length === 0, errors.join('\n'));

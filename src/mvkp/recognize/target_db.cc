@@ -64,4 +64,18 @@ std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::st
   return from_encodings;
 }
 
+std::vector<DuplicateOf> FindDuplicates(const Recognizer& rec, const cv::Mat& gray) {
+  std::vector<DuplicateOf> out;
+  if (rec.size() == 0) return out;
+  for (const Recognition& f : rec.Recognize(gray).found) out.push_back({f.id, f.inliers});
+  return out;
+}
+
+std::string DescribeDuplicates(const std::vector<DuplicateOf>& found) {
+  std::string s = "looks like";
+  for (std::size_t i = 0; i < found.size(); ++i)
+    s += (i ? ", '" : " '") + found[i].id + "' (" + std::to_string(found[i].inliers) + " inliers)";
+  return s;
+}
+
 }  // namespace mvkp

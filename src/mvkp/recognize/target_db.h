@@ -51,4 +51,22 @@ std::size_t LoadTargets(const TargetStore& store, Recognizer& rec, const std::st
                         const std::function<void(const TargetInfo&, int, int)>& each,
                         std::vector<SkippedTarget>* skipped = nullptr);
 
+// An existing target that a new image shows, and how strongly.
+struct DuplicateOf {
+  std::string id;
+  int inliers = 0;
+};
+
+// The targets of `rec` that `gray` (a new target's image) shows, seen as a
+// frame: the same picture, a crop of it, a brighter, smaller or re-encoded
+// copy. Two copies of one picture under two ids take each other's votes and
+// neither is found any more, so `db add`, `db import` and the admin API refuse
+// such an image unless told to allow it. Most inliers first; empty when the
+// image shows none of them (the recogniser's own acceptance rules: it reports
+// no target on frames that show none, measured 0 of 300 on the gallery's).
+std::vector<DuplicateOf> FindDuplicates(const Recognizer& rec, const cv::Mat& gray);
+
+// "looks like 'a' (57 inliers), 'b' (12 inliers)": for messages.
+std::string DescribeDuplicates(const std::vector<DuplicateOf>& found);
+
 }  // namespace mvkp

@@ -1021,7 +1021,8 @@ struct Service::Impl {
     if (!req.is_multipart_form_data() || !req.has_file("image") || !req.has_file("id"))
       return SendError(res, 400, "expected multipart fields 'image' and 'id' (and optional title, artist, year, url, meta)");
     for (const auto& [name, f] : req.files) {
-      static const std::set<std::string> kFields = {"image", "id", "title", "artist", "year", "url", "meta"};
+      static const std::set<std::string> kFields = {"image", "id", "title", "artist", "year", "url", "meta",
+                                                    "allow_duplicate"};
       if (!kFields.count(name)) return SendError(res, 400, "unknown field '" + name + "'");
     }
     auto field = [&](const char* k) { return req.has_file(k) ? req.get_file_value(k).content : std::string(); };
@@ -1047,7 +1048,7 @@ struct Service::Impl {
       TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
       if (store.Contains(inf.id)) return SendError(res, 409, "exhibit '" + inf.id + "' already exists");
       TargetRecord r;
-      if (!Train(inf, img, r, q, train_ms, quality_ms, res)) return;
+      if (!Train(inf, img, field("allow_duplicate") == "1", r, q, train_ms, quality_ms, res)) return;
       store.Add(r);  // one transaction
     } catch (const std::exception& e) {
       return Internal(res, std::string("admin add: ") + e.what());
@@ -1069,9 +1070,10 @@ struct Service::Impl {
 
   // Decodes and trains an exhibit's image with its quality report (admin
   // add and replace; admin_mutex held). A bad image or one training refuses
-  // gets 400 and false; internal failures throw.
-  bool Train(const TargetInfo& inf, const std::string& img, TargetRecord& r, Json& q, double& train_ms,
-             double& quality_ms, httplib::Response& res) {
+  // gets 400 and false; an image that shows another exhibit (unless
+  // `allow_duplicate`) 409 with "duplicates"; internal failures throw.
+  bool Train(const TargetInfo& inf, const std::string& img, bool allow_duplicate, TargetRecord& r, Json& q,
+             double& train_ms, double& quality_ms, httplib::Response& res) {
     cv::Mat gray;
     try {
       ImageLimits lim;
@@ -1082,6 +1084,25 @@ struct Service::Impl {
       return false;
     }
     const auto slot = cpu.Acquire();
+    if (!allow_duplicate) {
+      std::vector<DuplicateOf> dups;
+      {
+        std::shared_lock<std::shared_mutex> lock(mutex);
+        dups = FindDuplicates(*rec, gray);
+      }
+      std::erase_if(dups, [&](const DuplicateOf& d) { return d.id == inf.id; });  // a new photo of itself
+      if (!dups.empty()) {
+        Json list = Json::array();
+        for (const auto& d : dups) list.push_back({{"id", d.id}, {"inliers", d.inliers}});
+        res.status = 409;
+        res.set_content(Dump(Json{{"error", "the image " + DescribeDuplicates(dups) +
+                                                ", already an exhibit: two copies of one picture take each other's "
+                                                "votes and neither is found (send allow_duplicate=1 to add it anyway)"},
+                                  {"duplicates", list}}),
+                        "application/json");
+        return false;
+      }
+    }
     ++trainings;
     // The quality assessment (the longer job) runs beside the training.
     auto assessed = std::async(std::launch::async, [&gray] { return AssessTarget(gray, QualityOptions{}); });
@@ -1126,7 +1147,9 @@ struct Service::Impl {
       TargetStore store = TargetStore::Open(a.db, TargetStore::Mode::kReadWrite);
       if (!store.Contains(id)) return SendError(res, 404, "no exhibit '" + id + "'");
       TargetRecord r;
-      if (!Train(store.Get(id, false).info, img, r, q, train_ms, quality_ms, res)) return;
+      const bool allow = req.get_param_value("allow_duplicate") == "1" ||
+                         (form && req.has_file("allow_duplicate") && req.get_file_value("allow_duplicate").content == "1");
+      if (!Train(store.Get(id, false).info, img, allow, r, q, train_ms, quality_ms, res)) return;
       if (!store.ReplaceImage(r)) return SendError(res, 404, "no exhibit '" + id + "'");
     } catch (const std::exception& e) {
       return Internal(res, std::string("admin replace image: ") + e.what());

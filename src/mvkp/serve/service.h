@@ -7,8 +7,12 @@
 //        url, outline, homography, inliers, score[, pose]) and timings
 //   GET  /api/exhibits, /api/exhibits/{id}, /api/exhibits/{id}/image
 //        [?thumb=N: a JPEG at most N px on its longest side, 16..1024]
-//   POST /api/exhibits (multipart: image, id, title, artist, year, url, meta)
-//        -> 201 with the exhibit and its target quality ("quality")
+//        (request JPEGs are decoded reduced, DCT scaling, and answered in
+//        the photo's pixels)
+//   POST /api/exhibits (multipart: image, id, title, artist, year, url, meta
+//        [, allow_duplicate=1]) -> 201 with the exhibit and its target
+//        quality ("quality"); 409 with "duplicates" when the photo shows an
+//        exhibit already there (add and replace)
 //   PUT  /api/exhibits/{id} (JSON object with any of title, artist, year,
 //        url, meta), DELETE /api/exhibits/{id},
 //   PUT  /api/exhibits/{id}/image (the new photo as the body or multipart

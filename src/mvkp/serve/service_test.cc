@@ -528,7 +528,15 @@ TEST_F(ServiceTest, ReplacingAnExhibitsPhotoRetrainsItAndABadOneKeepsTheOld) {
 
   auto thumb_before = c.Get("/api/exhibits/starry/image?thumb=64");
   ASSERT_TRUE(thumb_before && thumb_before->status == 200);
+  // The coffee photo shows exhibit "coffee": refused (issue 20: duplicates),
+  // unless the admin says so.
   httplib::MultipartFormDataItems form = {{"image", coffee_jpeg, "c.jpg", "image/jpeg"}};
+  r = c.Put("/api/exhibits/starry/image", Admin(), form);
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 409) << r->body;
+  EXPECT_EQ(Json::parse(r->body)["duplicates"][0]["id"], "coffee");
+  EXPECT_EQ(TargetStore::Open(db).Get("starry", false).info.added_at, before);  // untouched
+  form.push_back({"allow_duplicate", "1", "", ""});
   r = c.Put("/api/exhibits/starry/image", Admin(), form);
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;
@@ -720,6 +728,46 @@ TEST_F(ServiceTest, AMissingOrBadCertificateIsAClearError) {
   o.cert = cert2;
   o.key = key2;
   EXPECT_NO_THROW(Service{o});
+}
+
+// Issue 20: an exhibit added twice (exactly, or cropped and brightened)
+// makes both unrecognisable, so the admin API refuses it with 409 and names
+// the exhibit it shows; allow_duplicate=1 adds it on purpose.
+TEST_F(ServiceTest, AddingAPhotoOfAnExistingExhibitIsRefusedWithItsName) {
+  const std::string db = CopyDb("duplicate");
+  Running s(Options(db));
+  auto c = s.Client(60);
+  const cv::Mat starry = testing::Sample("starry_night.jpg");
+  cv::Mat crop = starry(cv::Rect(starry.cols / 10, starry.rows / 8, starry.cols * 3 / 4, starry.rows * 3 / 4)).clone();
+  crop.convertTo(crop, -1, 1.3, 20);
+  std::vector<std::uint8_t> crop_jpeg;
+  cv::imencode(".jpg", crop, crop_jpeg, {cv::IMWRITE_JPEG_QUALITY, 80});
+  for (const std::string& img : {StarryJpeg(), std::string(crop_jpeg.begin(), crop_jpeg.end())}) {
+    httplib::MultipartFormDataItems add = {{"image", img, "s.jpg", "image/jpeg"}, {"id", "starry-2", "", ""}};
+    auto r = c.Post("/api/exhibits", Admin(), add);
+    ASSERT_TRUE(r);
+    ASSERT_EQ(r->status, 409) << r->body;
+    const Json j = Json::parse(r->body);
+    ASSERT_EQ(j["duplicates"].size(), 1u) << r->body;
+    EXPECT_EQ(j["duplicates"][0]["id"], "starry");
+    EXPECT_NE(j["error"].get<std::string>().find("allow_duplicate"), std::string::npos);
+  }
+  EXPECT_FALSE(TargetStore::Open(db).Contains("starry-2"));
+  // A distinct picture is added without a word.
+  std::vector<std::uint8_t> fruits;
+  cv::imencode(".jpg", testing::Sample("fruits.jpg"), fruits);
+  httplib::MultipartFormDataItems distinct = {{"image", std::string(fruits.begin(), fruits.end()), "f.jpg", "image/jpeg"},
+                                              {"id", "fruits", "", ""}};
+  auto r = c.Post("/api/exhibits", Admin(), distinct);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 201) << r->body;
+  httplib::MultipartFormDataItems forced = {{"image", StarryJpeg(), "s.jpg", "image/jpeg"},
+                                            {"id", "starry-2", "", ""},
+                                            {"allow_duplicate", "1", "", ""}};
+  r = c.Post("/api/exhibits", Admin(), forced);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 201) << r->body;
+  EXPECT_TRUE(TargetStore::Open(db).Contains("starry-2"));
 }
 
 }  // namespace
