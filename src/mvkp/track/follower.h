@@ -6,9 +6,10 @@
 // most max_targets), and leaves them after lose_after consecutive frames in
 // which it was looked for and not found. While targets are followed, the full
 // search runs every search_every frames to find new ones (and on every frame
-// while none is followed); each followed target the full search misses, or
-// that is due for a check on a frame without one, gets a focused search of its
-// own (Recognizer::RecognizeOne, the thesis's temporal focus, §6.3.1).
+// while none is followed); a followed target is checked by a focused search
+// of its own (Recognizer::RecognizeOne, the thesis's temporal focus, §6.3.1:
+// its own Matcher, more sensitive and on hard frames more accurate than the
+// full search).
 //
 // Without tracking (FollowerOptions::track = false) every followed target is
 // looked for in every frame (focused), plus the periodic full search; without
@@ -17,8 +18,8 @@
 // With tracking, each followed target has its own TargetTracker, started
 // from its detection, and frames in which no check is due are answered by
 // the trackers alone (mode kTrack). A target is checked by the recogniser
-// every tracker.redetect_every frames, or as soon as its tracking fails (a
-// full search that runs anyway counts as its check). On such a frame:
+// every tracker.redetect_every frames, or as soon as its tracking fails. On
+// such a frame:
 //   * detection and tracker agree (mean corner distance <= agree_px): the
 //     tracker's pose is kept (steadier) and the frame becomes its new
 //     reference (TargetTracker::Confirm);
