@@ -919,11 +919,13 @@ struct Service::Impl {
     }
     std::shared_lock<std::shared_mutex> lock(mutex);
     // The full search finds every exhibit in view, new ones too, from one
-    // set of frame features; then each exhibit the client saw last time that
-    // it missed gets a focused check of its own (temporal focus, thesis
-    // §6.3.1: more sensitive, but one feature extraction per id). Ids no
-    // longer in the database are ignored.
-    RecognitionResult r = rec->Recognize(gray);
+    // set of frame features (verifying as many more candidates as exhibits
+    // are known to be in view, so that those leave room for new ones); then
+    // each exhibit the client saw last time that it missed gets a focused
+    // check of its own (temporal focus, thesis §6.3.1: more sensitive, but
+    // one feature extraction per id). Ids no longer stored are ignored.
+    const auto known = std::count_if(prev.begin(), prev.end(), [&](const std::string& id) { return rec->Contains(id); });
+    RecognitionResult r = rec->Recognize(gray, rec->options().max_candidates + int(known));
     std::string mode = "full";
     for (const std::string& id : prev) {
       if (!rec->Contains(id)) continue;

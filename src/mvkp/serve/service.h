@@ -8,9 +8,10 @@
 //        inliers first), "mode" and timings. Each frame gets the full search
 //        (new exhibits are found whatever prev says); prev lists the exhibits
 //        the client saw in its last frame (at most 20 ids, or repeated prev
-//        parameters; ids no longer stored are ignored), and those the full
-//        search missed get a focused check each (mode "full+focus"). An empty
-//        item, a bad id or more than 20 ids: 400.
+//        parameters; ids no longer stored are ignored): the full search
+//        verifies as many more candidates as ids are known, and those it
+//        missed get a focused check each (mode "full+focus"). An empty item,
+//        a bad id or more than 20 ids: 400.
 //   GET  /api/exhibits, /api/exhibits/{id}, /api/exhibits/{id}/image
 //        [?thumb=N: a JPEG at most N px on its longest side, 16..1024]
 //   POST /api/exhibits (multipart: image, id, title, artist, year, url, meta)
