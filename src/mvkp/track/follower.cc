@@ -113,7 +113,9 @@ FollowedFrame VideoFollower::Process(const cv::Mat& gray) {
   if (full) {
     out.mode = FrameMode::kFull;
     since_full_ = 0;
-    rr = rec_->Recognize(gray);
+    // One more candidate verified per followed target: they have the most
+    // votes, and would otherwise take the places of new ones.
+    rr = rec_->Recognize(gray, rec_->options().max_candidates + int(n));
     for (const Recognition& d : rr.found) {
       const auto it = std::find_if(targets_.begin(), targets_.end(), [&](const Target& t) { return t.id == d.id; });
       // With focus a followed target is checked by its own focused search
