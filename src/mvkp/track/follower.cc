@@ -115,7 +115,7 @@ FollowedFrame VideoFollower::Process(const cv::Mat& gray) {
     since_full_ = 0;
     // One more candidate verified per followed target: they have the most
     // votes, and would otherwise take the places of new ones.
-    rr = rec_->Recognize(gray, rec_->options().max_candidates + int(n));
+    rr = rec_->Recognize(gray, std::min(100000, rec_->options().max_candidates + int(n)));
     for (const Recognition& d : rr.found) {
       const auto it = std::find_if(targets_.begin(), targets_.end(), [&](const Target& t) { return t.id == d.id; });
       // With focus a followed target is checked by its own focused search
@@ -138,6 +138,10 @@ FollowedFrame VideoFollower::Process(const cv::Mat& gray) {
       rr.describe_ms += one.describe_ms;
       rr.search_ms += one.search_ms;
       rr.verify_ms += one.verify_ms;
+      // The focused answer replaces the full search's for this target.
+      rr.found.erase(std::remove_if(rr.found.begin(), rr.found.end(),
+                                    [&](const Recognition& x) { return x.id == targets_[i].id; }),
+                     rr.found.end());
       rr.found.insert(rr.found.end(), one.found.begin(), one.found.end());
       if (!one.found.empty()) det[i] = one.found.front();
     }

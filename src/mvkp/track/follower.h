@@ -70,7 +70,8 @@ struct FollowedFrame {
   std::vector<bool> by_tracker;   // one per found
   bool tracked = false;           // any pose in found is a tracker's
   // The recogniser's results of this frame, merged: the full search's and
-  // the focused searches' found and summed timings (empty in kTrack frames).
+  // the focused searches' found (a focused answer replacing the full
+  // search's for its target) and summed timings (empty in kTrack frames).
   RecognitionResult recognition;
   double ms = 0;                  // wall clock of Process: recogniser and trackers
 };
