@@ -18,7 +18,7 @@ load means the load changed it.
 
 Clients (32 by default: 18 recognition, 8 readers, 2 admin, 4 slow sockets):
   - recognition: like the web client, frames of one exhibit in a row with
-    ?prev= the last found id, a JPEG body (sometimes multipart), checking
+    ?prev= the last found ids, a JPEG body (sometimes multipart), checking
     that a frame of exhibit X finds exactly X and a no-exhibit frame nothing;
   - readers: GET /api/exhibits, /api/exhibits/{id} (sometimes an unknown id:
     404), /api/exhibits/{id}/image with ?thumb=N for several N (the JPEG's
@@ -421,7 +421,7 @@ def recognition_client(k, port, frames, stats, stop, args):
                     stats.problem("wrong recognition", "recognize",
                                   {"frame": frame["name"], "expected": frame["expected"], "found": ids,
                                    "mode": mode, "prev": prev})
-                prev = ids[0] if ids else ""
+                prev = ",".join(ids[:20])  # as the web client: every exhibit of the last answer
             stop.wait(rng.uniform(0.02, 0.2))  # the phone draws the answer, grabs the next frame
     with stats.lock:
         stats.retries += c.retries

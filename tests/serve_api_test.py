@@ -234,8 +234,15 @@ with tempfile.TemporaryDirectory() as t:
         s, ct, b = request(base, "POST", "/api/recognize", body, {"Content-Type": ctype})
         check("recognize (multipart): starry", s == 200 and json.loads(b)["found"][0]["id"] == "starry", b[:200])
         s, ct, b = request(base, "POST", "/api/recognize?prev=starry", view, {"Content-Type": "image/png"})
-        check("recognize with prev=starry: temporal focus finds it",
-              s == 200 and json.loads(b)["mode"] == "focus" and json.loads(b)["found"][0]["id"] == "starry", b[:200])
+        check("recognize with prev=starry: the full search finds it, no focused check needed",
+              s == 200 and json.loads(b)["mode"] == "full" and [f["id"] for f in json.loads(b)["found"]] == ["starry"],
+              b[:200])
+        s, ct, b = request(base, "POST", "/api/recognize?prev=starry,building", view, {"Content-Type": "image/png"})
+        check("recognize with prev=starry,building: a focused check for the one not in view, which is not reported",
+              s == 200 and json.loads(b)["mode"] == "full+focus" and [f["id"] for f in json.loads(b)["found"]] == ["starry"],
+              b[:200])
+        bad_prev = request(base, "POST", "/api/recognize?prev=starry,,building", view, {"Content-Type": "image/png"})
+        check("recognize with a malformed prev list: 400", bad_prev[0] == 400 and b"prev" in bad_prev[2], bad_prev[2][:200])
         s, ct, b = request(base, "POST", "/api/recognize", baboon, {"Content-Type": "image/jpeg"})
         check("recognize a non-target: found is empty", s == 200 and json.loads(b)["found"] == [], b[:200])
 

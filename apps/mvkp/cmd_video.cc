@@ -1,15 +1,18 @@
 // mvkp video DB VIDEO|CAMERA_INDEX: recognition over a video with temporal
-// focus (thesis §6.3.1): once a target is found, the next frames look for
-// that target alone and return to the full search after N consecutive misses.
-// With --track klt the frames between detections are answered by optical-flow
-// tracking (mvkp/track), checked by the recogniser every --redetect-every
-// frames and whenever tracking fails (VideoFollower).
+// focus (thesis §6.3.1), every target in view at once (VideoFollower): a
+// target found by the full search is followed, looked for alone (focused) in
+// the next frames until N consecutive misses, while the full search runs
+// every --search-every frames for new ones. With --track klt (the default)
+// the frames between detections are answered by optical-flow tracking of
+// each target (mvkp/track), checked by the recogniser every --redetect-every
+// frames and whenever tracking fails.
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <set>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -31,7 +34,8 @@ namespace {
 struct VideoArgs {
   std::string db, source, output;
   bool json = false;
-  int lose_after = 3;     // consecutive misses of the focused target before the full search
+  int lose_after = 3;     // consecutive misses of a followed target before it is no longer followed
+  int search_every = FollowerOptions{}.search_every;  // frames between full searches while targets are followed
   int max_frames = 0;     // 0: all
   bool no_focus = false;  // full search on every frame (for comparison)
   std::string track = "klt";  // klt | none
@@ -41,12 +45,14 @@ struct VideoArgs {
 
 int RunVideo(VideoArgs& a) {
   Require(a.lose_after >= 1, ErrorCode::kInvalidArgument, "--lose-after must be >= 1");
+  Require(a.search_every >= 1, ErrorCode::kInvalidArgument, "--search-every must be >= 1");
   Require(a.track == "klt" || a.track == "none", ErrorCode::kInvalidArgument,
           "--track must be klt or none, not '" + a.track + "'");
   Require(a.redetect_every >= 0, ErrorCode::kInvalidArgument, "--redetect-every must be >= 0");
   FollowerOptions fo;
   fo.focus = !a.no_focus;
   fo.lose_after = a.lose_after;
+  fo.search_every = a.search_every;
   fo.track = a.track == "klt";
   fo.tracker.redetect_every = a.redetect_every;
   fo.Check();
@@ -79,6 +85,8 @@ int RunVideo(VideoArgs& a) {
   VideoFollower follower(rec, fo);
   for (const auto& [id, size] : sizes) follower.SetObjectSize(id, size);
   int frames = 0, found_frames = 0, focus_frames = 0, tracked_frames = 0, lost = 0;
+  std::size_t most = 0;           // targets in one frame
+  std::set<std::string> found_ids;
   bool seen = false, prev_found = false;
   std::vector<double> ms;
   cv::Mat frame, gray;
@@ -93,6 +101,8 @@ int RunVideo(VideoArgs& a) {
     const double t = r.ms;  // wall clock: recogniser and tracker
     ms.push_back(t);
     const bool found = !r.found.empty();
+    most = std::max(most, r.found.size());
+    for (const auto& x : r.found) found_ids.insert(x.id);
     if (found) {
       ++found_frames;
       seen = true;
@@ -108,7 +118,7 @@ int RunVideo(VideoArgs& a) {
         nlohmann::json outline = nlohmann::json::array();
         for (const auto& p : x.outline) outline.push_back({p.x, p.y});
         f.push_back({{"id", x.id}, {"title", titles[x.id]}, {"outline", outline}, {"inliers", x.inliers},
-                     {"tracked", k == 0 && r.tracked}});
+                     {"tracked", bool(r.by_tracker[k])}});
         if (poses[k]) f.back()["pose"] = PoseSupport::Json(*poses[k]);
       }
       std::cout << nlohmann::json{{"frame", frames}, {"mode", FrameModeName(r.mode)}, {"found", f}, {"time_ms", t}}.dump()
@@ -149,6 +159,8 @@ int RunVideo(VideoArgs& a) {
                                   {"tracked_frames", tracked_frames},
                                   {"track", a.track},
                                   {"lost_after_found", lost},
+                                  {"most_in_frame", most},
+                                  {"found_ids", found_ids},
                                   {"median_ms", sorted[sorted.size() / 2]},
                                   {"mean_ms", mean},
                                   {"max_ms", sorted.back()},
@@ -172,7 +184,11 @@ void RegisterVideo(CLI::App& app, int* code) {
   c->add_option("SOURCE", a->source, "video file, or a camera index such as 0")->required();
   c->add_option("-o,--output", a->output, "write the annotated video here (.mp4)");
   c->add_flag("--json", a->json, "one JSON object per frame, then a summary object");
-  c->add_option("--lose-after", a->lose_after, "misses of the focused target before the full search")->capture_default_str();
+  c->add_option("--lose-after", a->lose_after, "misses of a followed target before it is no longer followed")
+      ->capture_default_str();
+  c->add_option("--search-every", a->search_every,
+                "while targets are followed, the full search for new ones runs every N frames (1: every frame)")
+      ->capture_default_str();
   c->add_option("--max-frames", a->max_frames, "stop after this many frames (0: all)")->capture_default_str();
   c->add_flag("--no-focus", a->no_focus, "full search on every frame");
   c->add_option("--track", a->track, "between detections: klt (optical-flow tracking) or none")->capture_default_str();

@@ -13,6 +13,9 @@ Writes into OUTDIR:
               without a link)
   scene.json  {"width", "height", "quad"}: the painting's corners in scene.y4m frames
               (top-left, top-right, bottom-right, bottom-left), without the shake
+  scene4.y4m  640x480, 15 fps, 4 s: four paintings at once (starry_night, coffee,
+              building, astronaut; issue 20) on the fruits wall, with the same shake
+  scene4.json {"width", "height", "quads": {sample name: corners}}, without the shake
 
 Usage: make_video.py SAMPLES OUTDIR
 """
@@ -26,6 +29,13 @@ import numpy as np
 W, H, FPS = 640, 480, 15
 # The painting's corners in the video: a slightly turned frame, ~40% of the width.
 QUAD = [(205.0, 118.0), (448.0, 132.0), (441.0, 352.0), (198.0, 366.0)]
+# Four paintings in one frame (scene4.y4m), by sample name.
+QUADS4 = {
+    "starry_night": [(22.0, 18.0), (298.0, 26.0), (294.0, 240.0), (18.0, 244.0)],
+    "coffee": [(338.0, 30.0), (620.0, 22.0), (622.0, 212.0), (342.0, 216.0)],
+    "building": [(24.0, 266.0), (296.0, 262.0), (300.0, 450.0), (20.0, 454.0)],
+    "astronaut": [(360.0, 258.0), (590.0, 264.0), (586.0, 466.0), (364.0, 462.0)],
+}
 
 
 def background(samples, name, w, h):
@@ -90,6 +100,22 @@ def main():
 
     with open(os.path.join(out, "scene.json"), "w") as f:
         json.dump({"width": W, "height": H, "quad": QUAD}, f)
+
+    # Four paintings at once, each about 40 % of the frame's width, slightly turned.
+    pictures = {name: cv2.imread(os.path.join(samples, name + ".jpg"), cv2.IMREAD_COLOR) for name in QUADS4}
+    if any(p is None for p in pictures.values()):
+        sys.exit("cannot read the samples in " + samples)
+    frames = []
+    for i in range(4 * FPS):
+        t = 2 * np.pi * i / (4 * FPS)
+        dx, dy = 2.0 * np.sin(t), 1.5 * np.sin(2 * t)
+        img = bg
+        for name, quad in QUADS4.items():
+            img = paste(img, pictures[name], [(x + dx, y + dy) for x, y in quad])
+        frames.append(noisy(img, rng))
+    write_y4m(os.path.join(out, "scene4.y4m"), frames)
+    with open(os.path.join(out, "scene4.json"), "w") as f:
+        json.dump({"width": W, "height": H, "quads": QUADS4}, f)
 
 
 if __name__ == "__main__":

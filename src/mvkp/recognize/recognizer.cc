@@ -660,12 +660,18 @@ RecognitionResult Recognizer::RecognizeOne(const cv::Mat& gray, const std::strin
   return r;
 }
 
-RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const {
+RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const { return Recognize(gray, options_.max_candidates); }
+
+RecognitionResult Recognizer::Recognize(const cv::Mat& gray, int max_candidates) const {
   Require(!gray.empty() && gray.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "recognise: expected a non-empty 8-bit grayscale frame");
+  Require(max_candidates >= 1 && max_candidates <= 100000, ErrorCode::kInvalidArgument,
+          "recognise: max candidates must be in 1..100000");
+  RecognizerOptions o = options_;
+  o.max_candidates = max_candidates;
   const int side = std::max(gray.cols, gray.rows);
-  const int work = options_.match.working_size;
-  if (work <= 0 || side <= work) return Search(gray, -1, options_);
+  const int work = o.match.working_size;
+  if (work <= 0 || side <= work) return Search(gray, -1, o);
   // A large frame (as Matcher::Match): at the working size, then twice as
   // fine if nothing is found; homographies in the frame's pixels.
   RecognitionResult total;
@@ -673,7 +679,7 @@ RecognitionResult Recognizer::Recognize(const cv::Mat& gray) const {
     Timer t;
     const cv::Mat img = ScaleFrameDown(gray, f);
     const double resample_ms = t.ElapsedMs();
-    RecognitionResult r = Search(img, -1, options_);
+    RecognitionResult r = Search(img, -1, o);
     const double fx = double(img.cols) / gray.cols, a = 1.0 / fx, b = 0.5 / fx - 0.5;
     const cv::Matx33d S(a, 0, b, 0, a, b, 0, 0, 1);
     for (auto& x : r.found) {

@@ -193,6 +193,11 @@ class Recognizer {
   // Finds the targets in an 8-bit grayscale frame (Error(kInvalidArgument)
   // otherwise). With no targets, returns an empty result without looking.
   RecognitionResult Recognize(const cv::Mat& gray) const;
+  // As Recognize, verifying up to `max_candidates` targets instead of
+  // options().max_candidates (1..100000, Error(kInvalidArgument) otherwise):
+  // room for new targets when some are already known to be in view, so that
+  // those do not take every place (the guide service adds its ?prev= ids).
+  RecognitionResult Recognize(const cv::Mat& gray, int max_candidates) const;
 
   // Temporal focus (thesis §6.3.1): looks for one target only; cheaper than
   // Recognize and more sensitive (that target's votes need not stand out

@@ -101,6 +101,33 @@ TEST_F(RecognizerTest, FindsTwoTargetsInOneFrame) {
   for (const auto& f : r.found) EXPECT_TRUE(f.score > 0 && f.score <= 1);
 }
 
+// Issue 20: the targets verified per frame are the max_candidates with most
+// votes; a caller that knows some are in view makes room for others.
+TEST_F(RecognizerTest, MoreCandidatesMakeRoomForMoreTargetsInOneFrame) {
+  RecognizerOptions o;
+  o.max_candidates = 2;
+  const Recognizer rec = MakeRecognizer(o);
+  cv::Mat canvas(480, 1280, CV_8UC1);
+  cv::randn(canvas, 128, 10);
+  const std::vector<std::pair<std::string, cv::Matx33d>> placed = {
+      {"starry_night", cv::Matx33d(0.9, 0, 20, 0, 0.9, 60, 0, 0, 1)},
+      {"astronaut", cv::Matx33d(1.0, 0, 340, 0, 1.0, 60, 0, 0, 1)},
+      {"coffee", cv::Matx33d(0.9, 0, 680, 0, 0.9, 60, 0, 0, 1)},
+      {"building", cv::Matx33d(0.9, 0, 980, 0, 0.9, 60, 0, 0, 1)}};
+  for (const auto& [id, H] : placed)
+    cv::warpPerspective(images_->at(id), canvas, cv::Mat(H), canvas.size(), cv::INTER_LINEAR, cv::BORDER_TRANSPARENT);
+  EXPECT_EQ(rec.Recognize(canvas).found.size(), 2u);
+  const RecognitionResult r = rec.Recognize(canvas, 4);
+  EXPECT_EQ(r.candidates, 4);
+  ASSERT_EQ(r.found.size(), 4u);
+  for (const auto& [id, H] : placed) {
+    const Recognition* f = Find(r, id);
+    ASSERT_TRUE(f) << id;
+    EXPECT_LT(MeanCornerError(f->homography, H, images_->at(id).size()), 5.0) << id;
+  }
+  EXPECT_THROW(rec.Recognize(canvas, 0), Error);
+}
+
 TEST_F(RecognizerTest, FindsNothingInANonTarget) {
   const Recognizer rec = MakeRecognizer();
   for (const char* other : {"fruits.jpg", "baboon.jpg"}) {

@@ -413,6 +413,40 @@ std::unique_ptr<httplib::Server> MakeServer(const ServiceOptions& a) {
   return s;
 }
 
+// The exhibits a client saw in its last frame, `?prev=a,b,c` (or repeated
+// `prev` parameters): at most kMaxPrev distinct ids, each 1..256 bytes of
+// UTF-8 without control characters (the store's rules for any stored id).
+// An empty value means none; an empty item, a bad id or too many ids throw
+// Error(kInvalidArgument) naming what was wrong. Duplicates count once.
+constexpr std::size_t kMaxPrev = 20;
+
+std::vector<std::string> ParsePrev(const httplib::Request& req) {
+  std::vector<std::string> ids;
+  const std::size_t n = req.get_param_value_count("prev");
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::string v = req.get_param_value("prev", k);
+    if (v.empty()) continue;
+    for (std::size_t start = 0;;) {
+      const std::size_t comma = v.find(',', start);
+      const std::string id = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      Require(!id.empty(), ErrorCode::kInvalidArgument, "prev: empty id in the list (ids separated by single commas)");
+      TargetInfo t;
+      t.id = id;
+      try {
+        ValidateTargetInfo(t, /*new_id=*/false, "prev");
+      } catch (const Error&) {
+        throw Error(ErrorCode::kInvalidArgument, "prev: invalid exhibit id (1..256 bytes of UTF-8, no control characters)");
+      }
+      if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
+      Require(ids.size() <= kMaxPrev, ErrorCode::kInvalidArgument,
+              "prev: more than " + std::to_string(kMaxPrev) + " exhibit ids");
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+  }
+  return ids;
+}
+
 }  // namespace
 
 struct Service::Impl {
@@ -922,7 +956,9 @@ struct Service::Impl {
     if (body.empty()) return SendError(res, 400, "empty body: send a JPEG or PNG image");
     std::optional<CameraModel> cam;
     double width_m = 0;
+    std::vector<std::string> prev;
     try {
+      prev = ParsePrev(req);
       if (req.has_param("fx")) {
         CameraModel c;
         const double fx = Param(req, "fx", 0), fy = Param(req, "fy", fx);
@@ -964,16 +1000,25 @@ struct Service::Impl {
       cam->image_size = gray.size();
     }
     std::shared_lock<std::shared_mutex> lock(mutex);
-    const std::string prev = req.has_param("prev") ? req.get_param_value("prev") : "";
-    RecognitionResult r;
+    // The full search finds every exhibit in view, new ones too, from one
+    // set of frame features (verifying as many more candidates as exhibits
+    // are known to be in view, so that those leave room for new ones); then
+    // each exhibit the client saw last time that it missed gets a focused
+    // check of its own (temporal focus, thesis §6.3.1: more sensitive, but
+    // one feature extraction per id). Ids no longer stored are ignored.
+    const auto known = std::count_if(prev.begin(), prev.end(), [&](const std::string& id) { return rec->Contains(id); });
+    RecognitionResult r = rec->Recognize(gray, rec->options().max_candidates + int(known));
     std::string mode = "full";
-    if (!prev.empty() && rec->Contains(prev)) {
-      r = rec->RecognizeOne(gray, prev);  // temporal focus (thesis §6.3.1)
-      mode = "focus";
-    }
-    if (r.found.empty()) {
-      r = rec->Recognize(gray);
-      mode = mode == "focus" ? "focus+full" : "full";
+    for (const std::string& id : prev) {
+      if (!rec->Contains(id)) continue;
+      if (std::any_of(r.found.begin(), r.found.end(), [&](const Recognition& x) { return x.id == id; })) continue;
+      const RecognitionResult one = rec->RecognizeOne(gray, id);
+      mode = "full+focus";
+      r.detect_ms += one.detect_ms;
+      r.describe_ms += one.describe_ms;
+      r.search_ms += one.search_ms;
+      r.verify_ms += one.verify_ms;
+      r.found.insert(r.found.end(), one.found.begin(), one.found.end());
     }
     if (to_full != cv::Matx33d::eye())
       for (auto& f : r.found) {
@@ -983,6 +1028,8 @@ struct Service::Impl {
           p = cv::Point2f(float(q[0]), float(q[1]));
         }
       }
+    std::stable_sort(r.found.begin(), r.found.end(),
+                     [](const Recognition& x, const Recognition& y) { return x.inliers > y.inliers; });
     Json found = Json::array();
     for (const auto& f : r.found) {
       const TargetInfo& t = info.at(f.id);

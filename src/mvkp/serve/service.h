@@ -2,9 +2,16 @@
 // frames sent by phones and holds the exhibits' information. `mvkp serve` is
 // a thin command over it; an application can embed it.
 //
-//   POST /api/recognize[?prev=ID&fx=&fy=&cx=&cy=&width_m=]  JPEG/PNG body or
-//        multipart field "image" -> found exhibits (id, title, artist, year,
-//        url, outline, homography, inliers, score[, pose]) and timings
+//   POST /api/recognize[?prev=ID,ID,...&fx=&fy=&cx=&cy=&width_m=]  JPEG/PNG
+//        body or multipart field "image" -> every exhibit found (id, title,
+//        artist, year, url, outline, homography, inliers, score[, pose]; most
+//        inliers first), "mode" and timings. Each frame gets the full search
+//        (new exhibits are found whatever prev says); prev lists the exhibits
+//        the client saw in its last frame (at most 20 ids, or repeated prev
+//        parameters; ids no longer stored are ignored): the full search
+//        verifies as many more candidates as ids are known, and those it
+//        missed get a focused check each (mode "full+focus"). An empty item,
+//        a bad id or more than 20 ids: 400.
 //   GET  /api/exhibits, /api/exhibits/{id}, /api/exhibits/{id}/image
 //        [?thumb=N: a JPEG at most N px on its longest side, 16..1024]
 //        (request JPEGs are decoded reduced, DCT scaling, and answered in

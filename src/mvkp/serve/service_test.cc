@@ -11,6 +11,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -768,6 +769,113 @@ TEST_F(ServiceTest, AddingAPhotoOfAnExistingExhibitIsRefusedWithItsName) {
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 201) << r->body;
   EXPECT_TRUE(TargetStore::Open(db).Contains("starry-2"));
+}
+
+// Issue 20: several exhibits at once. `prev` lists what the client saw last
+// time; the service follows those and keeps looking for others.
+struct Placed {
+  std::string id;
+  cv::Rect box;  // where the exhibit's image sits in the frame
+};
+
+// starry_night.jpg and coffee.jpg side by side on a noisy grey wall, each
+// 340 px wide; `which` chooses the ones pasted.
+cv::Mat TwoExhibits(const std::vector<std::string>& which, std::vector<Placed>* placed) {
+  cv::Mat frame(400, 800, CV_8UC1);
+  cv::randn(frame, 110, 12);
+  const std::vector<std::pair<std::string, std::string>> all = {{"starry", "starry_night.jpg"}, {"coffee", "coffee.jpg"}};
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    if (std::find(which.begin(), which.end(), all[k].first) == which.end()) continue;
+    const cv::Mat img = testing::Sample(all[k].second);
+    cv::Mat small;
+    const double s = 340.0 / img.cols;
+    cv::resize(img, small, cv::Size(), s, s, cv::INTER_AREA);
+    const cv::Rect box(30 + int(k) * 400, 40, small.cols, small.rows);
+    small.copyTo(frame(box));
+    if (placed) placed->push_back({all[k].first, box});
+  }
+  return frame;
+}
+
+std::string Jpeg(const cv::Mat& m) {
+  std::vector<std::uint8_t> b;
+  cv::imencode(".jpg", m, b, {cv::IMWRITE_JPEG_QUALITY, 92});
+  return {b.begin(), b.end()};
+}
+
+// Mean distance (px) of an answer's outline from the placed image's corners.
+double OutlineError(const Json& found, const cv::Rect& box) {
+  const double x0 = box.x, y0 = box.y, x1 = box.x + box.width - 1., y1 = box.y + box.height - 1.;
+  const std::vector<cv::Point2d> truth = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  double e = 0;
+  for (int k = 0; k < 4; ++k)
+    e += cv::norm(cv::Point2d(found["outline"][k][0].get<double>(), found["outline"][k][1].get<double>()) - truth[k]);
+  return e / 4;
+}
+
+// The answer's exhibit ids, sorted, each with its outline checked (< 4 px).
+std::vector<std::string> FoundIds(const httplib::Result& r, const std::vector<Placed>& placed) {
+  std::vector<std::string> ids;
+  EXPECT_TRUE(r);
+  if (!r) return ids;
+  EXPECT_EQ(r->status, 200) << r->body;
+  if (r->status != 200) return ids;
+  const Json j = Json::parse(r->body);
+  for (const Json& f : j["found"]) {
+    ids.push_back(f["id"]);
+    const auto p = std::find_if(placed.begin(), placed.end(), [&](const Placed& x) { return x.id == f["id"]; });
+    if (p == placed.end()) ADD_FAILURE() << "reported an exhibit that is not in view: " << f["id"];
+    else EXPECT_LT(OutlineError(f, p->box), 4.0) << f.dump();
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+TEST_F(ServiceTest, PrevListsAreFollowedAndOthersStillFound) {
+  Running s(Options(CopyDb("prev")));
+  auto c = s.Client();
+  std::vector<Placed> both, starry;
+  const std::string two = Jpeg(TwoExhibits({"starry", "coffee"}, &both));
+  const std::string one = Jpeg(TwoExhibits({"starry"}, &starry));
+  const std::vector<std::string> kBoth = {"coffee", "starry"};
+  // Both in view, none known yet.
+  EXPECT_EQ(FoundIds(c.Post("/api/recognize", two, "image/jpeg"), both), kBoth);
+  // Both known: both followed.
+  EXPECT_EQ(FoundIds(c.Post("/api/recognize?prev=starry,coffee", two, "image/jpeg"), both), kBoth);
+  // One known (a single id, as before the list), a new one appears: found too.
+  EXPECT_EQ(FoundIds(c.Post("/api/recognize?prev=starry", two, "image/jpeg"), both), kBoth);
+  // A known one has left the view: its focused check runs, and reports nothing.
+  auto r = c.Post("/api/recognize?prev=coffee,starry", one, "image/jpeg");
+  EXPECT_EQ(FoundIds(r, starry), std::vector<std::string>{"starry"});
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_EQ(Json::parse(r->body)["mode"], "full+focus");
+  // Repeated parameters, duplicates and ids no longer in the database are fine.
+  EXPECT_EQ(FoundIds(c.Post("/api/recognize?prev=starry&prev=coffee,starry,gone.2019", two, "image/jpeg"), both), kBoth);
+  // Empty: no prev.
+  EXPECT_EQ(FoundIds(c.Post("/api/recognize?prev=", two, "image/jpeg"), both), kBoth);
+}
+
+TEST_F(ServiceTest, MalformedPrevListsAre400) {
+  Running s(Options(CopyDb("badprev")));
+  auto c = s.Client();
+  std::string many;
+  for (int i = 0; i < 21; ++i) many += (i ? "," : "") + std::string("x") + std::to_string(i);
+  std::string twenty;
+  for (int i = 0; i < 20; ++i) twenty += (i ? "," : "") + std::string("x") + std::to_string(i);
+  const std::string body = StarryJpeg();
+  const std::vector<std::string> bad = {"starry,", ",starry", "starry,,coffee", ",", "starry%01", "%FF%FE",
+                                        "x" + std::string(300, 'y'), many};
+  for (const std::string& q : bad) {
+    auto r = c.Post("/api/recognize?prev=" + q, body, "image/jpeg");
+    ASSERT_TRUE(r) << q;
+    EXPECT_EQ(r->status, 400) << q << ": " << r->body;
+    EXPECT_NE(r->body.find("prev"), std::string::npos) << r->body;
+  }
+  // The cap itself is fine.
+  auto r = c.Post("/api/recognize?prev=" + twenty, body, "image/jpeg");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(s.Health()["status"], "ok");
 }
 
 }  // namespace

@@ -1,15 +1,25 @@
 // Following recognised targets through a video: the per-frame policy of
 // `mvkp video` and bench/video_track.cc, so both measure the same thing.
 //
-// Without tracking (FollowerOptions::track = false) it is the thesis's
-// temporal focus (§6.3.1): after a detection the next frames look for that
-// target alone (Recognizer::RecognizeOne) and return to the full search after
-// lose_after consecutive misses; without focus every frame is a full search.
+// Every target in view is followed, each on its own (issue 20): a target
+// found by a full search (Recognizer::Recognize) joins the followed ones (at
+// most max_targets), and leaves them after lose_after consecutive frames in
+// which it was looked for and not found. While targets are followed, the full
+// search runs every search_every frames to find new ones (and on every frame
+// while none is followed); a followed target is checked by a focused search
+// of its own (Recognizer::RecognizeOne, the thesis's temporal focus, §6.3.1:
+// its own Matcher, more sensitive and on hard frames more accurate than the
+// full search).
 //
-// With tracking, a detection starts a TargetTracker on the first target found
-// and the following frames are answered by the tracker alone (mode kTrack).
-// Every tracker.redetect_every frames, or as soon as tracking fails, the
-// recogniser runs again (focused on the tracked id). On such a frame:
+// Without tracking (FollowerOptions::track = false) every followed target is
+// looked for in every frame (focused), plus the periodic full search; without
+// focus every frame is a full search.
+//
+// With tracking, each followed target has its own TargetTracker, started
+// from its detection, and frames in which no check is due are answered by
+// the trackers alone (mode kTrack). A target is checked by the recogniser
+// every tracker.redetect_every frames, or as soon as its tracking fails. On
+// such a frame:
 //   * detection and tracker agree (mean corner distance <= agree_px): the
 //     tracker's pose is kept (steadier) and the frame becomes its new
 //     reference (TargetTracker::Confirm);
@@ -20,6 +30,7 @@
 //     its pose error until the next check;
 //   * no detection but the tracker holds: the tracker's pose is reported and
 //     the recogniser tries again on the next frame.
+// Without focus the checks are full searches.
 #pragma once
 
 #include <map>
@@ -38,7 +49,9 @@ const char* FrameModeName(FrameMode m);  // "full" | "focus" | "track"
 
 struct FollowerOptions {
   bool focus = true;      // temporal focus; false: the recogniser always searches all targets
-  int lose_after = 3;     // consecutive misses of the focused target before the full search
+  int lose_after = 3;     // consecutive misses of a followed target before it is no longer followed
+  int search_every = 10;  // while targets are followed: frames between full searches for new ones (1: every frame)
+  int max_targets = 20;   // targets followed at once (ARCore tracks up to 20 images); more are reported, not followed
   bool track = true;      // optical-flow tracking between detections
   int weak_inliers = 30;  // detections with fewer inliers are re-checked on the next frame
   double agree_px = 2.0;  // detection within this mean corner distance of the tracker: keep the tracker's pose
@@ -47,14 +60,20 @@ struct FollowerOptions {
 };
 
 struct FollowedFrame {
-  FrameMode mode = FrameMode::kFull;  // the search that ran; kTrack: the tracker alone
-  // Targets in the frame, as RecognitionResult::found. When `tracked`, the
-  // first is the tracker's (inliers: its homography inliers; votes, score 0
-  // unless the recogniser also found it).
+  // The costliest search that ran: kFull (the full search, perhaps with
+  // focused ones), kFocus (focused searches only), kTrack (trackers alone).
+  FrameMode mode = FrameMode::kFull;
+  // Every target in the frame, most inliers first. A pose from a tracker
+  // (by_tracker[k]) has the tracker's homography inliers; votes and score
+  // are 0 unless the recogniser also found it.
   std::vector<Recognition> found;
-  bool tracked = false;
-  RecognitionResult recognition;  // the recogniser's own result (empty in kTrack frames)
-  double ms = 0;                  // wall clock of Process: recogniser and tracker
+  std::vector<bool> by_tracker;   // one per found
+  bool tracked = false;           // any pose in found is a tracker's
+  // The recogniser's results of this frame, merged: the full search's and
+  // the focused searches' found (a focused answer replacing the full
+  // search's for its target) and summed timings (empty in kTrack frames).
+  RecognitionResult recognition;
+  double ms = 0;                  // wall clock of Process: recogniser and trackers
 };
 
 class VideoFollower {
@@ -70,21 +89,25 @@ class VideoFollower {
   // One 8-bit grayscale frame (Error(kInvalidArgument) otherwise).
   FollowedFrame Process(const cv::Mat& gray);
 
-  void Reset();  // forget focus and track (e.g. on a cut)
-  const std::string& focus() const { return focus_; }
-  const TargetTracker& tracker() const { return tracker_; }
+  void Reset();  // forget the followed targets and their trackers (e.g. on a cut)
+  std::vector<std::string> followed() const;  // in the order they were first found
   const FollowerOptions& options() const { return options_; }
 
  private:
+  struct Target {
+    std::string id;
+    TargetTracker tracker;
+    int misses = 0;  // consecutive frames looked for and not found
+  };
   cv::Size ObjectSize(const Recognition& r) const;
-  Recognition Tracked() const;
+  // Starts (or restarts) t's tracker from detection d.
+  void StartTracker(Target& t, const cv::Mat& gray, const Recognition& d);
 
   const Recognizer* rec_;
   FollowerOptions options_;
-  TargetTracker tracker_;
   std::map<std::string, cv::Size> sizes_;
-  std::string focus_, tracked_id_;
-  int misses_ = 0;
+  std::vector<Target> targets_;
+  int since_full_ = 0;  // frames since the last full search
 };
 
 }  // namespace mvkp

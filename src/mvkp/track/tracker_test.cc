@@ -1,8 +1,11 @@
 #include "mvkp/track/tracker.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <map>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -209,7 +212,7 @@ TEST(VideoFollowerTest, TracksBetweenDetectionsAndLetsGo) {
   fo.tracker.redetect_every = 5;
   VideoFollower v(rec, fo);
   v.SetObjectSize("starry", s.target.size());
-  int tracked = 0, found = 0, focus = 0;
+  int tracked = 0, found = 0, checks = 0;
   for (int i = 0; i < 30; ++i) {
     const cv::Matx33d H = PathH(s.target.size(), i / 30.0);
     const FollowedFrame f = v.Process(s.Render(H, i));
@@ -217,7 +220,7 @@ TEST(VideoFollowerTest, TracksBetweenDetectionsAndLetsGo) {
       EXPECT_EQ(f.mode, FrameMode::kFull);
     }
     tracked += f.mode == FrameMode::kTrack;
-    focus += f.mode == FrameMode::kFocus;
+    checks += i > 0 && f.mode != FrameMode::kTrack;  // focused, or the full search for new targets
     // Tracked frames drift between checks (every 5th here): 3.5 px allowed.
     const double err = f.found.empty() ? -1 : MeanCornerError(f.found[0].homography, H, s.target.size());
     if (!f.found.empty() && f.found[0].id == "starry" && err < 3.5) ++found;
@@ -225,7 +228,7 @@ TEST(VideoFollowerTest, TracksBetweenDetectionsAndLetsGo) {
   }
   EXPECT_EQ(found, 30);
   EXPECT_GE(tracked, 20);
-  EXPECT_GE(focus, 4);
+  EXPECT_GE(checks, 5);  // every 5th frame at least
   int reported = 0;
   FrameMode last = FrameMode::kTrack;
   for (int i = 0; i < 6; ++i) {
@@ -234,11 +237,87 @@ TEST(VideoFollowerTest, TracksBetweenDetectionsAndLetsGo) {
     last = f.mode;
   }
   EXPECT_EQ(reported, 0);
-  EXPECT_EQ(last, FrameMode::kFull);  // lose_after misses of the focused target
+  EXPECT_EQ(last, FrameMode::kFull);  // lose_after misses: nothing followed
   EXPECT_THROW(v.Process(cv::Mat()), Error);
   FollowerOptions bad;
   bad.lose_after = 0;
   EXPECT_THROW(VideoFollower(rec, bad), Error);
+}
+
+// Issue 20: several targets at once, each followed with its own tracker, and
+// one that comes into view later found by the periodic full search.
+TEST(VideoFollowerTest, FollowsEveryTargetInViewAndFindsNewOnes) {
+  cv::Mat background;
+  cv::resize(mvkp::testing::Sample("baboon.jpg"), background, cv::Size(640, 480), 0, 0, cv::INTER_AREA);
+  struct Moving {
+    std::string id;
+    cv::Mat image;
+    cv::Point2d centre;
+    int from = 0;  // first frame in view
+  };
+  std::vector<Moving> targets = {{"starry", PrepareTarget(mvkp::testing::Sample("starry_night.jpg"), 200), {150, 125}},
+                                 {"astronaut", PrepareTarget(mvkp::testing::Sample("astronaut.jpg"), 200), {480, 135}},
+                                 {"coffee", PrepareTarget(mvkp::testing::Sample("coffee.jpg"), 200), {320, 365}, 12}};
+  TrainOptions to;
+  to.views = 40;
+  to.max_object_side = 320;
+  to.min_scale = 0.25;
+  Recognizer rec;
+  for (const auto& t : targets) rec.Add(t.id, Train(t.image, to));
+  FollowerOptions fo;
+  fo.search_every = 5;
+  VideoFollower v(rec, fo);
+  for (const auto& t : targets) v.SetObjectSize(t.id, t.image.size());
+  const int kFrames = 40;
+  std::map<std::string, int> visible, right;
+  std::map<std::string, double> worst;
+  int most = 0;
+  for (int i = 0; i < kFrames; ++i) {
+    cv::Mat frame = background.clone();
+    std::map<std::string, cv::Matx33d> truth;
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      const Moving& t = targets[k];
+      if (i < t.from) continue;
+      // Each on its own part of the path, none overlapping another.
+      const cv::Matx33d H = PathH(t.image.size(), 0.15 * double(k) + 0.7 * i / kFrames, t.centre.x, t.centre.y);
+      cv::Mat warped, mask;
+      WarpAntiAliased(t.image, H, frame.size(), warped, &mask);
+      warped.copyTo(frame, mask);
+      truth[t.id] = H;
+    }
+    cv::Mat noise(frame.size(), CV_16SC1), f16;
+    cv::RNG rng(std::uint64_t(i) + 1);
+    rng.fill(noise, cv::RNG::NORMAL, 0, 2);
+    frame.convertTo(f16, CV_16SC1);
+    f16 += noise;
+    f16.convertTo(frame, CV_8UC1);
+    const FollowedFrame f = v.Process(frame);
+    ASSERT_EQ(f.by_tracker.size(), f.found.size());
+    most = std::max(most, int(f.found.size()));
+    for (const auto& [id, H] : truth) {
+      ++visible[id];
+      const auto it = std::find_if(f.found.begin(), f.found.end(), [&](const Recognition& x) { return x.id == id; });
+      if (it == f.found.end()) continue;
+      const cv::Size size = std::find_if(targets.begin(), targets.end(), [&](const Moving& t) { return t.id == id; })->image.size();
+      const double e = MeanCornerError(it->homography, H, size);
+      worst[id] = std::max(worst[id], e);
+      right[id] += e < 3.5;
+    }
+    for (const auto& x : f.found) EXPECT_TRUE(truth.count(x.id)) << "frame " << i << ": " << x.id << " is not in view";
+  }
+  EXPECT_EQ(most, 3);
+  for (const auto& t : targets) {
+    std::printf("%s: %d of %d visible frames within 3.5 px, worst %.2f px\n", t.id.c_str(), right[t.id], visible[t.id],
+                worst[t.id]);
+    // The late one: found by the next full search (within search_every frames).
+    const int allowed_misses = t.from > 0 ? fo.search_every - 1 : 0;
+    EXPECT_GE(right[t.id] + allowed_misses, visible[t.id]) << t.id << ": " << right[t.id] << " of " << visible[t.id]
+                                                           << " frames within 3.5 px, worst " << worst[t.id] << " px";
+    EXPECT_GE(right[t.id], 0.95 * (visible[t.id] - allowed_misses)) << t.id;
+  }
+  std::vector<std::string> followed = v.followed();
+  std::sort(followed.begin(), followed.end());
+  EXPECT_EQ(followed, (std::vector<std::string>{"astronaut", "coffee", "starry"}));
 }
 
 }  // namespace
