@@ -263,7 +263,7 @@ void BindRecognize(py::module_& m) {
           "add",
           [](std::shared_ptr<PyDatabase> d, const std::string& id, py::handle image, const std::string& title,
              const std::string& artist, const std::string& year, const std::string& url, py::handle meta,
-             py::handle image_bytes, py::handle options, py::kwargs kw) {
+             py::handle image_bytes, bool allow_duplicate, py::handle options, py::kwargs kw) {
             TargetStore& store = d->get();
             Require(d->writable, ErrorCode::kInvalidArgument, d->path + ": opened read-only (use writable=True)");
             Require(!store.Contains(id), ErrorCode::kInvalidArgument, d->path + ": target '" + id + "' already exists");
