@@ -10,12 +10,14 @@
 #    a cropped (central 70-85 %), brightened (x1.25 + 15), shrunk (x0.7),
 #    JPEG-80 copy, and imports them into the same database: each should be
 #    refused as "looks like" its original.
-# Writes OUTDIR/summary.json and prints it. Needs python3 with cv2 and numpy.
+# Writes OUTDIR/summary.json and prints it. Needs PYTHON (default /usr/bin/python3)
+# with cv2 and numpy.
 set -euo pipefail
 mvkp=${1:?usage: duplicate-eval.sh MVKP OUTDIR IMAGE...}
 out=${2:?usage: duplicate-eval.sh MVKP OUTDIR IMAGE...}
 shift 2
 copies=${COPIES:-20}
+py=${PYTHON:-/usr/bin/python3}
 rm -rf "$out"
 mkdir -p "$out/distinct" "$out/copies"
 i=0
@@ -34,7 +36,7 @@ set +e
 "$mvkp" db import "$db" "$out/distinct/list.csv" --keep-going >"$out/distinct.out" 2>"$out/distinct.err"
 set -e
 "$mvkp" db list "$db" --json >"$out/imported.json"
-python3 - "$out" "$copies" <<'PYEOF'
+"$py" - "$out" "$copies" <<'PYEOF'
 import csv, json, os, sys, cv2, numpy as np
 out, copies = sys.argv[1], int(sys.argv[2])
 ids = [t["id"] for t in json.load(open(os.path.join(out, "imported.json")))]
@@ -56,7 +58,7 @@ PYEOF
 set +e
 "$mvkp" db import "$db" "$out/copies/list.csv" --keep-going >"$out/copies.out" 2>"$out/copies.err"
 set -e
-python3 - "$out" "$#" <<'PYEOF'
+"$py" - "$out" "$#" <<'PYEOF'
 import json, os, re, sys
 out, n = sys.argv[1], int(sys.argv[2])
 def rows(path):

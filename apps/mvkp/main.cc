@@ -111,10 +111,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s: %s\n", mvkp::cli::CommandPath(app).c_str(), e.what());
     return 1;
   }
-  // A bare `mvkp`: what it can do, not an error code.
+  // A bare `mvkp`: what it can do (stdout), and a usage error (stderr, exit 2).
   if (app.get_subcommands().empty()) {
     std::fputs(app.help().c_str(), stdout);
-    return 0;
+    std::fputs("mvkp: a command is required (see the list above, or 'mvkp COMMAND --help')\n", stderr);
+    return 2;
   }
   return code;
 }
