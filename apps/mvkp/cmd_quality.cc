@@ -1,10 +1,17 @@
-// mvkp quality: how well images will be recognised as targets (0-100, with reasons).
+// mvkp quality: how well images will be recognised as targets (0-100, with
+// reasons); for a target database, every exhibit's score and the exhibits
+// that look alike.
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "commands.h"
+#include "mvkp/core/error.h"
 #include "mvkp/core/image_io.h"
+#include "mvkp/db/target_store.h"
+#include "mvkp/quality/db_quality.h"
 #include "mvkp/quality/quality.h"
 #include "output.h"
 
@@ -16,8 +23,45 @@ struct QualityArgs {
   bool json = false;
   std::string draw;
   bool affine = false;
+  int views = DatabaseQualityOptions{}.synthetic_views;
   QualityOptions opt;
 };
+
+// Whether `path` opens as a target database: nullopt if it does; else why not
+// (for the error of a file that is no image either).
+std::optional<std::string> NotADatabase(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return "no such file";
+  try {
+    TargetStore::Open(path);
+    return std::nullopt;
+  } catch (const Error& e) {
+    return e.what();
+  }
+}
+
+void PrintDatabase(const DatabaseQualityReport& r) {
+  std::printf("%s: %zu exhibits\n", r.db.c_str(), r.exhibits.size());
+  double q_ms = 0, p_ms = 0;
+  for (const auto& e : r.exhibits) {
+    if (e.assessed)
+      std::printf("  %-24s quality %3d/100 (%s), detection %.0f%%, %d stable points at %d px\n", e.info.id.c_str(),
+                  e.quality.score, e.quality.verdict.c_str(), 100 * e.quality.detection_rate, e.quality.eligible_tracks,
+                  e.quality.train_side);
+    else std::printf("  %-24s not assessed\n", e.info.id.c_str());
+    if (!e.error.empty()) std::printf("    error: %s\n", e.error.c_str());
+    q_ms += e.quality_ms;
+    p_ms += e.probe_ms;
+  }
+  if (r.pairs.empty()) std::printf("no exhibits look alike\n");
+  else std::printf("look-alikes (recognising A's image and views finds B instead):\n");
+  for (const auto& p : r.pairs)
+    std::printf("  %s -> %s: found in %d of %d probes, up to %d inliers\n", p.a.c_str(), p.b.c_str(), p.found_in,
+                p.probes, p.inliers);
+  const double n = std::max<std::size_t>(1, r.exhibits.size());
+  std::printf("  %.1f s (per exhibit: quality %.0f ms, look-alike search %.0f ms)\n", r.ms / 1000, q_ms / n, p_ms / n);
+}
+
 
 nlohmann::json ImageQualityJson(const std::string& image, const QualityReport& r) {
   nlohmann::json j = QualityJson(r, /*with_points=*/true);
@@ -47,7 +91,23 @@ int RunQuality(QualityArgs& a) {
   for (std::size_t i = 0; i < a.images.size(); ++i) {
     const std::string& path = a.images[i];
     try {
-      const cv::Mat gray = LoadImageGray(path);
+      const std::optional<std::string> not_db = NotADatabase(path);
+      if (!not_db) {
+        DatabaseQualityOptions d;
+        d.quality = a.opt;
+        d.synthetic_views = a.views;
+        const DatabaseQualityReport r = AssessDatabase(path, d);
+        if (a.json) std::cout << DatabaseQualityJson(r).dump() << std::endl;
+        else PrintDatabase(r);
+        continue;
+      }
+      cv::Mat gray;
+      try {
+        gray = LoadImageGray(path);
+      } catch (const Error& e) {
+        if (e.code() != ErrorCode::kBadImage || *not_db == "no such file") throw;
+        throw Error(e.code(), std::string(e.what()) + "; nor an mvkp target database (" + *not_db + ")");
+      }
       const QualityReport r = AssessTarget(gray, a.opt);
       if (a.json) std::cout << ImageQualityJson(path, r).dump() << std::endl;
       else PrintText(path, r);
@@ -67,7 +127,8 @@ int RunQuality(QualityArgs& a) {
 void RegisterQuality(CLI::App& app, int* code) {
   auto a = std::make_shared<QualityArgs>();
   auto* c = app.add_subcommand("quality", "Score images as targets (0-100) with the reasons and expected detection rate");
-  c->add_option("IMAGE", a->images, "candidate target images")->required();
+  c->add_option("IMAGE", a->images, "candidate target images, or target databases (every exhibit's score and the look-alike pairs)")->required();
+  c->add_option("--lookalike-views", a->views, "databases: synthetic views per exhibit for the look-alike search (0-16)")->capture_default_str();
   c->add_flag("--json", a->json, "one JSON object per line, per image");
   c->add_option("--draw", a->draw, "write the image with the selected features marked (-N suffix for several)");
   c->add_option("--test-views", a->opt.test_views, "synthetic views for the detection rate")->capture_default_str();
