@@ -91,7 +91,7 @@ DatabaseQualityReport AssessDatabase(const std::string& db, const DatabaseQualit
   Timer timer;
   const TargetStore store = TargetStore::Open(db);
   DatabaseQualityReport rep;
-  rep.db = db;
+  rep.db = o.name.empty() ? db : o.name;
   for (const TargetInfo& info : store.List()) {
     ExhibitQuality e;
     e.info = info;
@@ -105,7 +105,7 @@ DatabaseQualityReport AssessDatabase(const std::string& db, const DatabaseQualit
   for (auto& e : rep.exhibits) {
     try {
       const TargetRecord r = store.Get(e.info.id, /*with_image=*/false);
-      Model m = DeserializeModel(r.model.data(), r.model.size(), db + ": target '" + e.info.id + "'");
+      Model m = DeserializeModel(r.model.data(), r.model.size(), rep.db + ": target '" + e.info.id + "'");
       rec.Add(e.info.id, m);
       models.emplace(e.info.id, std::move(m));
     } catch (const Error& ex) {
@@ -119,7 +119,7 @@ DatabaseQualityReport AssessDatabase(const std::string& db, const DatabaseQualit
     const std::string& id = e.info.id;
     cv::Mat gray;
     try {
-      gray = DecodeStoredGray(db + ": the stored image of '" + id + "'", store.Get(id, true).image, o.max_pixels);
+      gray = DecodeStoredGray(rep.db + ": the stored image of '" + id + "'", store.Get(id, true).image, o.max_pixels);
     } catch (const Error& ex) {
       if (ex.code() == ErrorCode::kIo) throw;
       if (e.error.empty()) e.error = ex.what();

@@ -34,6 +34,7 @@ struct DatabaseQualityOptions {
   // Stored images above this many pixels are decoded reduced (JPEG: 1/2, 1/4
   // or 1/8), as the guide service decodes them; others are refused.
   std::int64_t max_pixels = 100'000'000;
+  std::string name;                // names the database in errors and in the report ("": its path)
   // Optional: replaces AssessTarget(gray, quality) for one exhibit (a caller's
   // cache, or a CPU gate). Called only when `score`.
   std::function<QualityReport(const TargetInfo& info, const cv::Mat& gray)> assess;
