@@ -2,10 +2,10 @@
 // reasons); for a target database, every exhibit's score and the exhibits
 // that look alike.
 #include <cstdio>
-#include <filesystem>
+#include <cstring>
+#include <fstream>
 #include <iostream>
 #include <memory>
-#include <optional>
 
 #include "commands.h"
 #include "mvkp/core/error.h"
@@ -27,17 +27,13 @@ struct QualityArgs {
   QualityOptions opt;
 };
 
-// Whether `path` opens as a target database: nullopt if it does; else why not
-// (for the error of a file that is no image either).
-std::optional<std::string> NotADatabase(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return "no such file";
-  try {
-    TargetStore::Open(path);
-    return std::nullopt;
-  } catch (const Error& e) {
-    return e.what();
-  }
+// Whether `path` is an SQLite file (a target database, or a damaged one):
+// then it is opened as a database and its errors are the answer.
+bool IsSqliteFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[16] = {};
+  in.read(magic, sizeof magic);
+  return in.gcount() == 16 && std::memcmp(magic, "SQLite format 3", 16) == 0;
 }
 
 void PrintDatabase(const DatabaseQualityReport& r) {
@@ -91,8 +87,7 @@ int RunQuality(QualityArgs& a) {
   for (std::size_t i = 0; i < a.images.size(); ++i) {
     const std::string& path = a.images[i];
     try {
-      const std::optional<std::string> not_db = NotADatabase(path);
-      if (!not_db) {
+      if (IsSqliteFile(path)) {
         DatabaseQualityOptions d;
         d.quality = a.opt;
         d.synthetic_views = a.views;
@@ -105,8 +100,9 @@ int RunQuality(QualityArgs& a) {
       try {
         gray = LoadImageGray(path);
       } catch (const Error& e) {
-        if (e.code() != ErrorCode::kBadImage || *not_db == "no such file") throw;
-        throw Error(e.code(), std::string(e.what()) + "; nor an mvkp target database (" + *not_db + ")");
+        // A file of no known image format may be a database given by mistake.
+        if (e.code() != ErrorCode::kBadImage || std::string(e.what()).find("not an image") == std::string::npos) throw;
+        throw Error(e.code(), std::string(e.what()) + "; nor an mvkp target database");
       }
       const QualityReport r = AssessTarget(gray, a.opt);
       if (a.json) std::cout << ImageQualityJson(path, r).dump() << std::endl;
