@@ -66,6 +66,7 @@ expect_ok "quality of a 16x16 image exits 0" "$MVKP" quality "$T/tiny.pgm" --jso
 json_check "tiny image: score 0, reason 'too_small'" 'j[0]["score"] == 0 and j[0]["reasons"][0]["code"] == "too_small"'
 expect_ok "quality, text output" "$MVKP" quality "$SAMPLES/coffee.jpg" --test-views 8
 check "text output names score and factors" grep -q "quality .*/100" "$T/out"
+check "text output: stable points with their training size" grep -qE "stable_points .*measured [0-9]+ at 400 px" "$T/out"
 
 # --- mvkp quality: bad input ---------------------------------------------------------
 printf 'not an image\n' >"$T/notimage.png"

@@ -58,7 +58,6 @@ void PrintDatabase(const DatabaseQualityReport& r) {
   std::printf("  %.1f s (per exhibit: quality %.0f ms, look-alike search %.0f ms)\n", r.ms / 1000, q_ms / n, p_ms / n);
 }
 
-
 nlohmann::json ImageQualityJson(const std::string& image, const QualityReport& r) {
   nlohmann::json j = QualityJson(r, /*with_points=*/true);
   j["image"] = image;
@@ -70,8 +69,12 @@ void PrintText(const std::string& image, const QualityReport& r) {
   if (r.test_views > 0 && !r.factors.empty())
     std::printf("  expected detection rate %.0f%% (%d synthetic views, success = corner error < 5 px)\n",
                 100 * r.detection_rate, r.test_views);
-  for (const auto& f : r.factors)
-    std::printf("  %-16s %5.1f / %4.0f points  (measured %.3g)\n", f.name.c_str(), f.points, 100 * f.weight, f.value);
+  for (const auto& f : r.factors) {
+    std::printf("  %-16s %5.1f / %4.0f points  (measured %.3g", f.name.c_str(), f.points, 100 * f.weight, f.value);
+    // The count depends on the training size (`mvkp db add` trains smaller).
+    if (f.name == "stable_points" && r.train_side > 0) std::printf(" at %d px", r.train_side);
+    std::printf(")\n");
+  }
   if (r.reasons.empty()) std::printf("  no weaknesses found\n");
   for (const auto& q : r.reasons) {
     if (q.lost >= 0.5) std::printf("  - %s (-%.0f): %s\n", q.code.c_str(), q.lost, q.message.c_str());
