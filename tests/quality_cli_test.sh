@@ -66,6 +66,7 @@ expect_ok "quality of a 16x16 image exits 0" "$MVKP" quality "$T/tiny.pgm" --jso
 json_check "tiny image: score 0, reason 'too_small'" 'j[0]["score"] == 0 and j[0]["reasons"][0]["code"] == "too_small"'
 expect_ok "quality, text output" "$MVKP" quality "$SAMPLES/coffee.jpg" --test-views 8
 check "text output names score and factors" grep -q "quality .*/100" "$T/out"
+check "text output: stable points with their training size" grep -qE "stable_points .*measured [0-9]+ at 400 px" "$T/out"
 
 # --- mvkp quality: bad input ---------------------------------------------------------
 printf 'not an image\n' >"$T/notimage.png"
@@ -78,6 +79,44 @@ if ((RC == 1)) && ! process_problem >/dev/null; then ok "good + missing image: e
 json_check "good + missing image: a score for the good one, an error object for the other" \
   'len(j) == 2 and "score" in j[0] and "error" in j[1] and "missing.png" in j[1]["error"]'
 expect_reject "quality --test-views 0" "test views" "$MVKP" quality "$SAMPLES/coffee.jpg" --test-views 0
+
+# --- mvkp quality DB: the database as a whole (issue 20) ---------------------------
+# The six samples plus a near-duplicate of coffee: a second photo of it (a
+# camera view on a plain background, slightly scaled and tilted).
+run "$MVKP" db create "$T/g.db"
+for f in "$SAMPLES"/*.jpg; do
+  id=$(basename "$f" .jpg)
+  run "$MVKP" db add "$T/g.db" --id "$id" --image "$f"
+  ((RC == 0)) || fail "db add $id: $(first_err)"
+done
+run "$MVKP" synth "$SAMPLES/coffee.jpg" -o "$T/dup" --n 1 --seed 3 --no-clutter --no-lighting --min-scale 0.9 \
+  --max-scale 1.0 --perspective 0.05 --blur 0 --noise 0 --target-size 0 --width 700 --height 600
+run "$MVKP" db add "$T/g.db" --id coffee_copy --image "$T/dup/view_0000.png"
+((RC == 0)) || fail "db add coffee_copy: $(first_err)"
+expect_ok "quality of a database (--json)" "$MVKP" quality "$T/g.db" --json --test-views 8
+cp "$T/out" "$T/db.json"
+json_check "database: 7 exhibits, each with a score" \
+  'len(j) == 1 and len(j[0]["exhibits"]) == 7 and all(isinstance(e["quality"]["score"], int) for e in j[0]["exhibits"])'
+json_check "database: coffee and its copy are look-alikes, both ways, and no other pair" \
+  'sorted((p["a"], p["b"]) for p in j[0]["lookalikes"]) == [("coffee", "coffee_copy"), ("coffee_copy", "coffee")] and all(p["inliers"] >= 12 for p in j[0]["lookalikes"])'
+expect_ok "quality of the six sample images" "$MVKP" quality "$SAMPLES"/*.jpg --json --test-views 8
+check "database scores equal mvkp quality on the same images" $PY - "$T/db.json" "$T/out" <<'PYEOF'
+import json, os, sys
+db = json.loads(open(sys.argv[1]).read())
+img = {os.path.basename(o["image"])[:-4]: o for o in map(json.loads, open(sys.argv[2]))}
+ex = {e["id"]: e["quality"] for e in db["exhibits"]}
+bad = [k for k, o in img.items() if (ex[k]["score"], ex[k]["stable_points"]) != (o["score"], o["stable_points"])]
+print("differ:", bad) if bad else None
+sys.exit(1 if bad or len(img) != 6 else 0)
+PYEOF
+expect_ok "quality of a database, text" "$MVKP" quality "$T/g.db" --test-views 4 --lookalike-views 0
+check "text: the pair (stored image only)" \
+  grep -qE "coffee -> coffee_copy: found in 1 of 1 probes" "$T/out"
+check "text: time per exhibit" grep -qE "per exhibit: quality [0-9]+ ms, look-alike search [0-9]+ ms" "$T/out"
+expect_fail "a file neither image nor database" "nor an mvkp target database" "$MVKP" quality "$T/notimage.png"
+head -c 2000 "$T/g.db" >"$T/cut.db"
+expect_fail "a truncated database" "cut.db: DB: database disk image is malformed" "$MVKP" quality "$T/cut.db"
+expect_reject "--lookalike-views 99" "synthetic views" "$MVKP" quality "$T/g.db" --lookalike-views 99
 
 # --- mvkp train: RIFS options ----------------------------------------------------------
 expect_ok "train --explain --select rifs --keep 30%" \

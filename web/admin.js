@@ -662,6 +662,39 @@
     }
   });
 
+  // ---- database quality ------------------------------------------------------
+
+  // GET /api/admin/quality: every exhibit's score (cached on the server by
+  // the exhibit's added_at) and the look-alike pairs; weakest exhibits first.
+  $('dbq-button').addEventListener('click', async () => {
+    const b = $('dbq-button');
+    busy(b, true, 'Checking…');
+    try {
+      const r = await api('GET', '/api/admin/quality');
+      const n = r.exhibits.length;
+      const pairs = r.lookalikes || [];
+      $('dbq-summary').textContent = n + (n === 1 ? ' exhibit' : ' exhibits') + ', ' +
+        (pairs.length ? pairs.length + (pairs.length === 1 ? ' look-alike' : ' look-alikes')
+          : 'no exhibits that look alike') + ' (' + (r.time_ms / 1000).toFixed(1) + ' s, ' +
+        r.assessed_now + ' assessed now).';
+      $('dbq-pairs').replaceChildren(...pairs.map((p) => el('li', { class: 'poor' },
+        el('strong', { text: p.a }), ' is recognised as ', el('strong', { text: p.b }),
+        ' in ' + p.found_in + ' of ' + p.probes + ' tries (up to ' + p.inliers + ' matching points)')));
+      const rows = r.exhibits.slice().sort((x, y) =>
+        (x.quality ? x.quality.score : -1) - (y.quality ? y.quality.score : -1));
+      $('dbq-scores').replaceChildren(...rows.map((x) => {
+        if (x.quality) setQuality(x.id, Object.assign({ added_at: x.added_at }, x.quality));
+        return el('li', {}, el('strong', { text: x.title || x.id }), ' ',
+          x.quality ? qualityView(x.quality) : el('span', { class: 'badge poor', text: x.error || 'not assessed' }));
+      }));
+      $('dbq-result').hidden = false;
+    } catch (e) {
+      say('Cannot check the database: ' + e.message, 'error');
+    } finally {
+      busy(b, false);
+    }
+  });
+
   // ---- start -------------------------------------------------------------
 
   if (token) login(token);

@@ -47,6 +47,7 @@ double Median(std::vector<double> v);
 void Progress(const std::string& what, int done, int total);
 
 // The JSON answers shared with the guide service (mvkp/serve/encode.h).
+using serve::DatabaseQualityJson;
 using serve::QualityJson;
 using serve::RecognitionJson;
 

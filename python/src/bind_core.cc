@@ -497,6 +497,7 @@ void BindCore(py::module_& m) {
       .def_readonly("test_views", &QualityReport::test_views)
       .def_readonly("median_error_px", &QualityReport::median_error_px)
       .def_readonly("eligible_tracks", &QualityReport::eligible_tracks)
+      .def_readonly("train_side", &QualityReport::train_side)
       .def_readonly("selected_tracks", &QualityReport::selected_tracks)
       .def_property_readonly("factors", [](const QualityReport& r) {
         py::list l;

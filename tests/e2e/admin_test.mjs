@@ -8,6 +8,8 @@
 //   - the same with a CSV and photo files chosen together
 //   - "Replace photo": the exhibit's stored image becomes the new file, its
 //     id and title stay, and the page says so
+//   - "Database quality": every exhibit scored, the duplicate photos listed as
+//     look-alike pairs and no other pair
 // Exits non-zero on any failure; the server is stopped in every case.
 //
 // Env: MVKP (mvkp binary), SAMPLES (repo samples/), CHROMIUM (default
@@ -169,6 +171,22 @@ try {
   check('replace photo: a photo of another exhibit is confirmed first', dialog.includes('z-coffee'), dialog);
   check('replace photo: id and title stay', after.id === 'starry' && after.title === before.title, JSON.stringify(after));
   check('replace photo: the card is still listed', (await page.$('li[data-id="starry"]')) !== null);
+
+  // Database quality (issue 20): l-dup is baboon.jpg again, and starry now
+  // holds coffee.jpg like z-coffee: both pairs are listed, each exhibit scored.
+  await page.click('#dbq-button');
+  await page.waitForFunction(() => /exhibits, /.test(document.getElementById('dbq-summary').textContent), null,
+    { timeout: 180000 });
+  const pairs = await page.$$eval('#dbq-pairs > li', (li) => li.map((x) => x.textContent));
+  const has = (a, b) => pairs.some((t) => t.startsWith(a + ' is recognised as ' + b + ' '));
+  check('database quality: the duplicate photos are listed as look-alikes',
+    has('l-baboon', 'l-dup') && has('l-dup', 'l-baboon') && has('starry', 'z-coffee') && has('z-coffee', 'starry'),
+    JSON.stringify(pairs));
+  check('database quality: no other pair', pairs.length === 4, JSON.stringify(pairs));
+  const scores = await page.$$eval('#dbq-scores > li', (li) => li.map((x) => x.textContent));
+  const exhibitCount = (await (await api("/api/exhibits")).json()).exhibits.length;
+  check('database quality: every exhibit has a score',
+    scores.length === exhibitCount && scores.every((t) => /quality \d+\/100/.test(t)), JSON.stringify(scores));
   check('no script errors', errors.length === 0, errors.join('\n'));
 } catch (e) {
   fatal(e.stack || String(e));

@@ -182,6 +182,7 @@ QualityReport AssessTarget(const cv::Mat& input, const QualityOptions& o) {
     // at full size); the smaller levels repeat it coarser.
     rep.eligible_tracks = 0;
     rep.selected_tracks = tr.kept;
+    rep.train_side = tr.level_sizes.empty() ? 0 : tr.level_sizes[0];
     std::vector<cv::Point2f> sel;
     for (const auto& t : tr.tracks) {
       if (t.rank < 0) continue;
@@ -263,13 +264,18 @@ QualityReport AssessTarget(const cv::Mat& input, const QualityOptions& o) {
 
   const double min_lost = 1.0;  // points; smaller weaknesses are not worth a reason
   auto weak = [&](const QualityFactor& f) { return f.lost >= min_lost; };
-  if (weak(fd) && trained)
-    rep.reasons.push_back({"low_detection",
-                           Fmt("found within %.0f px in %.0f%% of camera-model test frames (60-620 px, tilts up to "
-                               "75 degrees, busy backgrounds, dim lighting, blur, noise); below %.0f%% the other factors "
-                               "count only in part",
-                               o.success_px, 100 * hard, 100 * o.half_rate),
-                           fd.lost});
+  if (weak(fd) && trained) {
+    // Says what was measured, over the envelope actually used; the gate is
+    // mentioned only when it took points (the soft rate is below half_rate).
+    std::string msg = Fmt("found within %.0f px in %.0f%% of camera-model test frames", o.success_px, 100 * hard) +
+                      Fmt(" (%.0f-%.0f px,", o.min_size, o.max_size) +
+                      Fmt(" tilts up to %.0f degrees, busy backgrounds, dim lighting, blur, noise)",
+                          std::max(o.size_tilt, o.max_tilt));
+    if (gated >= 0.5)
+      msg += Fmt("; that is below %.0f%%, so the other factors count only in part (%.0f points held back)",
+                 100 * o.half_rate, gated);
+    rep.reasons.push_back({"low_detection", msg, fd.lost});
+  }
   if (!trained)
     rep.reasons.push_back({"few_stable_points",
                            "too few stable interest points to train a target at all: the image needs texture "
@@ -278,9 +284,9 @@ QualityReport AssessTarget(const cv::Mat& input, const QualityOptions& o) {
   else if (weak(fs))
     rep.reasons.push_back(
         {"few_stable_points",
-         Fmt("only %.0f stable points (seen in enough training views; %.0f or more is good): add detail or "
-             "use a more textured image",
-             rep.eligible_tracks, o.good_stable_tracks),
+         Fmt("only %.0f stable points when trained at %.0f px (seen in enough training views; %.0f or more is "
+             "good): add detail or use a more textured image",
+             rep.eligible_tracks, rep.train_side, o.good_stable_tracks),
          fs.lost});
   if (weak(fr) && trained)
     rep.reasons.push_back({"repeated_elements",

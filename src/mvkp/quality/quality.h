@@ -11,7 +11,8 @@
 // the measured detection rate (60 points) with four structural factors (10
 // points each, counted in full once the target is found in a third of the
 // views), each reported with the points it costs, so the number explains itself:
-//   stable points   eligible RIFS view tracks (too few: fragile target)
+//   stable points   eligible RIFS view tracks at the top training level
+//                   (too few: fragile target)
 //   distinctiveness how far each selected point's nearest look-alike is,
 //                   relative to DS (repeated elements: tiles, brick, text)
 //   texture         share of the image with usable gradient structure
@@ -90,7 +91,12 @@ struct QualityReport {
   double detection_rate = 0;            // fraction of test frames found within success_px
   int test_views = 0;
   double median_error_px = 0;           // over detected views
+  // Stable points: eligible view tracks of the top training level, which is
+  // trained at train_side px (longest side; `mvkp train`: up to 640).
+  // `mvkp db add` trains at 320 px (RecognitionTrainDefaults) and counts
+  // the same tracks there, so its count of a small or plain image is lower.
   int eligible_tracks = 0, selected_tracks = 0;
+  int train_side = 0;                   // 0 when the image could not be trained
   std::vector<QualityFactor> factors;
   std::vector<QualityReason> reasons;   // most costly first; empty for a flawless target
   std::vector<cv::Point2f> selected;    // selected view tracks, input-image pixels (best first)

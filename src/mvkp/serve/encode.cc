@@ -26,6 +26,7 @@ Json QualityJson(const QualityReport& r, bool with_points) {
             {"test_views", r.test_views},
             {"median_error_px", r.median_error_px},
             {"stable_points", r.eligible_tracks},
+            {"stable_points_side", r.train_side},
             {"selected_points", r.selected_tracks},
             {"factors", factors},
             {"reasons", reasons},
@@ -36,6 +37,22 @@ Json QualityJson(const QualityReport& r, bool with_points) {
     j["selected"] = sel;
   }
   return j;
+}
+
+Json DatabaseQualityJson(const DatabaseQualityReport& r) {
+  Json ex = Json::array(), pairs = Json::array();
+  for (const auto& e : r.exhibits) {
+    Json j = {{"id", e.info.id},
+              {"title", e.info.title},
+              {"added_at", e.info.added_at},
+              {"quality", e.assessed ? QualityJson(e.quality, /*with_points=*/false) : Json(nullptr)},
+              {"time_ms", {{"quality", e.quality_ms}, {"probe", e.probe_ms}}}};
+    if (!e.error.empty()) j["error"] = e.error;
+    ex.push_back(std::move(j));
+  }
+  for (const auto& p : r.pairs)
+    pairs.push_back({{"a", p.a}, {"b", p.b}, {"found_in", p.found_in}, {"probes", p.probes}, {"inliers", p.inliers}});
+  return {{"db", r.db}, {"exhibits", ex}, {"lookalikes", pairs}, {"time_ms", r.ms}};
 }
 
 Json PoseJson(const Pose& p) {

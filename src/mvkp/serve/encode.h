@@ -8,6 +8,7 @@
 
 #include "mvkp/db/target_store.h"
 #include "mvkp/pose/pose.h"
+#include "mvkp/quality/db_quality.h"
 #include "mvkp/quality/quality.h"
 #include "mvkp/recognize/recognizer.h"
 
@@ -20,6 +21,14 @@ nlohmann::json RecognitionJson(const Recognition& f, const std::string& title);
 // (with points), reasons, time_ms; the selected feature positions only when
 // `with_points`.
 nlohmann::json QualityJson(const QualityReport& r, bool with_points);
+
+// A database's quality (`mvkp quality DB --json`, GET /api/admin/quality):
+// {"db", "exhibits": [{"id", "title", "added_at", "quality" (QualityJson
+// without points) or null, "error" (if any), "time_ms": {"quality", "probe"}}],
+// "lookalikes": [{"a", "b", "found_in", "probes", "inliers"}], "time_ms"}.
+// A look-alike: exhibit b was found in `found_in` of `probes` recognitions of
+// a's stored image and views.
+nlohmann::json DatabaseQualityJson(const DatabaseQualityReport& r);
 
 // {"rvec", "tvec" (metres, camera frame), "R", "distance_m", "reprojection_px"}.
 nlohmann::json PoseJson(const Pose& p);

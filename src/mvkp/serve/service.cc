@@ -31,6 +31,7 @@
 #include "mvkp/db/target_store.h"
 #include "mvkp/model/model.h"
 #include "mvkp/pose/pose.h"
+#include "mvkp/quality/db_quality.h"
 #include "mvkp/quality/quality.h"
 #include "mvkp/recognize/recognizer.h"
 #include "mvkp/recognize/target_db.h"
@@ -157,7 +158,7 @@ RouteInfo RouteOf(const std::string& p) {
   }
   if (p == "/api/recognize") return {p, "POST"};
   if (p == "/api/exhibits") return {p, "GET, HEAD, POST"};
-  if (p == "/api/admin/check" || p == "/healthz" || p == "/metrics" || p == "/api/site" || p == "/api/site/logo")
+  if (p == "/api/admin/check" || p == "/api/admin/quality" || p == "/healthz" || p == "/metrics" || p == "/api/site" || p == "/api/site/logo")
     return {p, "GET, HEAD"};
   if (p == "/admin" || p == "/admin.html" || p == "/admin.js" || p == "/admin.css") return {"/admin", "GET, HEAD"};
   if (FindWebAsset(p)) return {"/", "GET, HEAD"};
@@ -503,6 +504,7 @@ struct Service::Impl {
   std::map<std::string, CachedQuality> quality;  // by id, with the added_at it belongs to
   std::mutex quality_mutex;
   std::mutex assess_mutex;  // one on-demand assessment at a time
+  std::mutex db_quality_mutex;  // one database report at a time
 
   CpuGate cpu;
   ThumbCache thumbs;
@@ -780,6 +782,7 @@ struct Service::Impl {
     srv->Get(R"(/api/exhibits/([^/]+)/image)", H(&Impl::Image));
     srv->Get(R"(/api/exhibits/([^/]+)/quality)", H(&Impl::Quality));
     srv->Get("/api/admin/check", H(&Impl::AdminCheck));
+    srv->Get("/api/admin/quality", H(&Impl::DatabaseQuality));
     srv->Get(R"(/api/exhibits/([^/]+))", H(&Impl::GetExhibit));
     srv->Post("/api/exhibits", H(&Impl::AddExhibit));
     srv->Put(R"(/api/exhibits/([^/]+))", H(&Impl::UpdateExhibit));
@@ -934,6 +937,55 @@ struct Service::Impl {
     q["id"] = id;
     q["cached"] = !computed;
     res.set_content(Dump(q), "application/json");
+  }
+
+  // GET /api/admin/quality: `mvkp quality DB --json` for the served
+  // database. Scores come from the per-exhibit cache (keyed by added_at, shared
+  // with /api/exhibits/{id}/quality), so only new or replaced exhibits are
+  // assessed (seconds each, one at a time, in a CPU slot); the look-alike
+  // search (~0.1 s per exhibit) runs on every request.
+  void DatabaseQuality(const httplib::Request& req, httplib::Response& res) {
+    if (!Authorised(req, res)) return;
+    std::lock_guard<std::mutex> one(db_quality_mutex);
+    Timer total;
+    DatabaseQualityOptions o;
+    o.score = false;  // below, through the cache
+    o.max_pixels = a.max_pixels;
+    o.name = "the database";  // answers never name the server's files
+    DatabaseQualityReport r;
+    {
+      const auto slot = cpu.Acquire();
+      r = AssessDatabase(a.db, o);
+    }
+    Json j = DatabaseQualityJson(r);
+    j.erase("db");
+    const TargetStore store = TargetStore::Open(a.db);
+    int computed = 0;
+    for (Json& e : j["exhibits"]) {
+      const std::string id = e["id"], added_at = e["added_at"];
+      {
+        std::lock_guard<std::mutex> lock(quality_mutex);
+        const auto it = quality.find(id);
+        if (it != quality.end() && it->second.added_at == added_at) e["quality"] = it->second.report;
+      }
+      if (!e["quality"].is_null() || e.contains("error")) continue;
+      try {
+        const cv::Mat gray = DecodeStored("the stored image of '" + id + "'", store.Get(id, true).image, a.max_pixels, false);
+        std::lock_guard<std::mutex> lock(assess_mutex);
+        const auto slot = cpu.Acquire();
+        const QualityReport q = AssessTarget(gray, QualityOptions{});
+        e["quality"] = QualityJson(q, /*with_points=*/false);
+        e["time_ms"]["quality"] = q.ms;
+        ++computed;
+        std::lock_guard<std::mutex> c(quality_mutex);
+        quality[id] = {added_at, e["quality"]};
+      } catch (const Error& ex) {
+        e["error"] = ex.what();
+      }
+    }
+    j["assessed_now"] = computed;
+    j["time_ms"] = total.ElapsedMs();
+    res.set_content(Dump(j), "application/json");
   }
 
   void Recognize(const httplib::Request& req, httplib::Response& res) {

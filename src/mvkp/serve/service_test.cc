@@ -308,6 +308,38 @@ TEST_F(ServiceTest, QualityOfAStoredImageAboveThePixelLimitIsAssessedReduced) {
   EXPECT_EQ(r->status, 200);
 }
 
+// Issue 20: the database as a whole, for the admin page: scores (cached by
+// added_at, so the second request assesses nothing) and look-alike pairs.
+TEST_F(ServiceTest, DatabaseQualityListsScoresAndLookalikesAndCachesScores) {
+  const std::string db = CopyDb("dbquality");
+  Running s(Options(db));
+  auto r = s.Client().Get("/api/admin/quality");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 401);
+  r = s.Client(600).Get("/api/admin/quality", Admin());
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  ExpectClean(r, db);
+  const Json first = Json::parse(r->body);
+  ASSERT_EQ(first["exhibits"].size(), 2u);
+  EXPECT_EQ(first["assessed_now"], 2);
+  EXPECT_TRUE(first["lookalikes"].empty()) << first["lookalikes"];  // starry night and coffee differ
+  for (const Json& e : first["exhibits"]) {
+    EXPECT_TRUE(e["quality"]["score"].is_number()) << e;
+    EXPECT_GT(e["quality"]["stable_points"], 0);
+  }
+  // The per-exhibit route shares the cache.
+  r = s.Client().Get("/api/exhibits/coffee/quality", Admin());
+  ASSERT_TRUE(r && r->status == 200);
+  EXPECT_EQ(Json::parse(r->body)["cached"], true);
+  r = s.Client(600).Get("/api/admin/quality", Admin());
+  ASSERT_TRUE(r && r->status == 200);
+  const Json second = Json::parse(r->body);
+  EXPECT_EQ(second["assessed_now"], 0);
+  for (std::size_t i = 0; i < 2; ++i)
+    EXPECT_EQ(second["exhibits"][i]["quality"]["score"], first["exhibits"][i]["quality"]["score"]);
+}
+
 // Findings 6 and 7, and 9's "refused only after 2 s of training".
 TEST_F(ServiceTest, IdsAndLinksFollowTheRulesBeforeAnyTraining) {
   const std::string db = CopyDb("ids");

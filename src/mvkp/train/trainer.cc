@@ -516,8 +516,8 @@ Model Train(const cv::Mat& object_in, const TrainOptions& opt, TrainReport* repo
     keep *= opt.level_locations;
     if (li == 0 && lv.stable < opt.min_locations)
       throw Error(ErrorCode::kNoTexture, "target has too little texture to train: " + std::to_string(lv.stable) +
-                                             " stable interest points, at least " + std::to_string(opt.min_locations) +
-                                             " needed");
+                                             " stable interest points when trained at " + std::to_string(sizes[li]) +
+                                             " px, at least " + std::to_string(opt.min_locations) + " needed");
     if (li > 0 && int(lv.locations.size()) < 4) {  // too small to add anything useful
       if (opt.progress) opt.progress(progress_total, progress_total);
       break;
