@@ -91,7 +91,8 @@ for f in "$SAMPLES"/*.jpg; do
 done
 run "$MVKP" synth "$SAMPLES/coffee.jpg" -o "$T/dup" --n 1 --seed 3 --no-clutter --no-lighting --min-scale 0.9 \
   --max-scale 1.0 --perspective 0.05 --blur 0 --noise 0 --target-size 0 --width 700 --height 600
-run "$MVKP" db add "$T/g.db" --id coffee_copy --image "$T/dup/view_0000.png"
+# Added on purpose: `db add` refuses a photo of an exhibit already there.
+run "$MVKP" db add "$T/g.db" --id coffee_copy --image "$T/dup/view_0000.png" --allow-duplicate
 ((RC == 0)) || fail "db add coffee_copy: $(first_err)"
 expect_ok "quality of a database (--json)" "$MVKP" quality "$T/g.db" --json --test-views 8
 cp "$T/out" "$T/db.json"
