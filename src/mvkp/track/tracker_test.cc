@@ -294,7 +294,10 @@ TEST(VideoFollowerTest, FollowsEveryTargetInViewAndFindsNewOnes) {
     const FollowedFrame f = v.Process(frame);
     ASSERT_EQ(f.by_tracker.size(), f.found.size());
     most = std::max(most, int(f.found.size()));
-    for (const auto& [id, H] : truth) {
+    for (const auto& entry : truth) {
+      // Not a structured binding: clang 14 (the sanitizer build) cannot capture one in a lambda.
+      const auto& id = entry.first;
+      const auto& H = entry.second;
       ++visible[id];
       const auto it = std::find_if(f.found.begin(), f.found.end(), [&](const Recognition& x) { return x.id == id; });
       if (it == f.found.end()) continue;
