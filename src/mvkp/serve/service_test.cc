@@ -538,7 +538,7 @@ TEST_F(ServiceTest, PhonePhotosAreAcceptedAndAnsweredInTheirOwnPixels) {
 TEST_F(ServiceTest, ReplacingAnExhibitsPhotoRetrainsItAndABadOneKeepsTheOld) {
   const std::string db = CopyDb("replace");
   Running s(Options(db));
-  auto c = s.Client();
+  auto c = s.Client(120);  // training through HTTP: seconds, a minute under the sanitizers
   std::vector<std::uint8_t> coffee;
   cv::imencode(".jpg", testing::Sample("coffee.jpg"), coffee);
   const std::string coffee_jpeg(coffee.begin(), coffee.end());
