@@ -45,21 +45,23 @@ class BruteForceIndex final : public KnnIndex {
 
   void Search(const float* q, int k, Neighbor* out) const override {
     if (k <= 0) return;
-    std::fill(out, out + k, Neighbor{});
     internal::RequireFinite(q, 1, dim_, "index: query");
-    if (n_ == 0) return;
     computations_.fetch_add(n_, std::memory_order_relaxed);
-    const float* dist = Distances(q);
-    for (std::size_t i = 0; i < n_; ++i) {
-      const float d = dist[i];
-      if (d >= out[k - 1].distance) continue;
-      int p = k - 1;
-      while (p > 0 && out[p - 1].distance > d) {
-        out[p] = out[p - 1];
-        --p;
-      }
-      out[p] = {std::int32_t(i), labels_[i], d};
-    }
+    thread_local std::vector<float> scratch;
+    scratch.resize(nblocks_ * kLanes);
+    SearchOne(q, k, out, scratch.data());
+  }
+
+  // The same answers as Search() query by query; the checks, the statistics
+  // and the scratch buffer are paid once per batch (the IVF's coarse
+  // quantiser asks for the lists of a whole frame's descriptors at once).
+  void SearchBatch(const float* queries, std::size_t nq, int k, Neighbor* out) const override {
+    if (k <= 0 || nq == 0) return;
+    internal::RequireFinite(queries, nq, dim_, "index: query");
+    computations_.fetch_add(n_ * nq, std::memory_order_relaxed);
+    std::vector<float> scratch(nblocks_ * kLanes);
+    for (std::size_t i = 0; i < nq; ++i)
+      SearchOne(queries + i * std::size_t(dim_), k, out + i * std::size_t(k), scratch.data());
   }
 
   void SearchTwoDistinct(const float* q, Neighbor out[2], float ratio) const override {
@@ -96,13 +98,23 @@ class BruteForceIndex final : public KnnIndex {
   }
 
  private:
-  // Distances from q to every stored vector, in a per-thread scratch buffer so
-  // that concurrent searches on one index are safe.
-  const float* Distances(const float* q) const {
-    thread_local std::vector<float> scratch;
-    scratch.resize(nblocks_ * kLanes);
-    kernel_(blocks_.data(), nblocks_, q, dim_, scratch.data());
-    return scratch.data();
+  // The k nearest of q, nearest first, ties by row (the first stored wins);
+  // `dist` is scratch for nblocks_ * kLanes distances (the caller's, so that
+  // concurrent searches on one index are safe).
+  void SearchOne(const float* q, int k, Neighbor* out, float* dist) const {
+    std::fill(out, out + k, Neighbor{});
+    if (n_ == 0) return;
+    kernel_(blocks_.data(), nblocks_, q, dim_, dist);
+    for (std::size_t i = 0; i < n_; ++i) {
+      const float d = dist[i];
+      if (d >= out[k - 1].distance) continue;
+      int p = k - 1;
+      while (p > 0 && out[p - 1].distance > d) {
+        out[p] = out[p - 1];
+        --p;
+      }
+      out[p] = {std::int32_t(i), labels_[i], d};
+    }
   }
 
   std::size_t n_ = 0, nblocks_ = 0;

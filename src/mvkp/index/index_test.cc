@@ -14,13 +14,31 @@ TEST(L2Kernels, SimdEqualsScalarOnIntegerData) {
   if (!internal::CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
   std::mt19937 rng(3);
   for (int dim = 1; dim <= 37; ++dim)
-    for (std::size_t nb : {1u, 2u, 5u}) {
+    for (std::size_t nb : {1u, 2u, 4u, 5u, 9u, 11u}) {  // the four-block loop, its tail, both
       std::vector<float> blocks(nb * dim * 8), q(dim), a(nb * 8), b(nb * 8);
       for (auto& v : blocks) v = float(int(rng() % 201) - 100);
       for (auto& v : q) v = float(int(rng() % 201) - 100);
       internal::L2Blocks8Scalar(blocks.data(), nb, q.data(), dim, a.data());
       internal::L2Blocks8Avx2(blocks.data(), nb, q.data(), dim, b.data());
       EXPECT_EQ(a, b) << "dim " << dim;
+    }
+}
+
+// Each lane sums its dimensions in the same order with fused multiply-adds
+// in both kernels, so even real-valued distances agree to the bit (the
+// search's answers must not depend on which kernel the CPU gets).
+TEST(L2Kernels, SimdEqualsScalarBitForBitOnRealData) {
+  if (!internal::CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937 rng(11);
+  std::normal_distribution<float> g(0.f, 3.f);
+  for (int dim : {1, 7, 20, 33})
+    for (std::size_t nb : {3u, 4u, 8u, 13u}) {
+      std::vector<float> blocks(nb * dim * 8), q(dim), a(nb * 8), b(nb * 8);
+      for (auto& v : blocks) v = g(rng);
+      for (auto& v : q) v = g(rng);
+      internal::L2Blocks8Scalar(blocks.data(), nb, q.data(), dim, a.data());
+      internal::L2Blocks8Avx2(blocks.data(), nb, q.data(), dim, b.data());
+      for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], b[i]) << "dim " << dim << " nb " << nb << " lane " << i;
     }
 }
 
