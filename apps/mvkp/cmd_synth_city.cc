@@ -52,6 +52,7 @@ int RunSynthCity(SynthCityArgs& a) {
                               {"scale", c.scale},
                               {"rotation_deg", c.rotation_deg},
                               {"overlap", a.opt.overlap},
+                              {"style", a.opt.style},
                               {"photo_overlap", c.photo_overlap},
                               {"depth_overlap", c.depth_overlap},
                               {"ms", std::round(ms)}};
@@ -95,6 +96,12 @@ void RegisterSynthCity(CLI::App& app, int* code) {
   c->add_option("--noise", o.photo_noise, "max photo noise sigma (grey levels)")->capture_default_str();
   c->add_flag("!--no-overlap", o.overlap, "the photo shows a different area (negative tests)");
   c->add_flag("!--no-pitched", o.pitched_roofs, "flat roofs only");
+  c->add_option("--style", o.style,
+                "classic (the original generator), suburb (houses, gardens, hedges, pools, two street grids), dense "
+                "(bars, blocks, halls with parking lots, dark roofs) or civic (round and star-shaped buildings among "
+                "both); every style but classic has hilly ground, moved cars and a leaning (not true) orthophoto")
+      ->check(CLI::IsMember(CityStyles()))
+      ->capture_default_str();
   c->callback([a, code] { *code = RunSynthCity(*a); });
 }
 
