@@ -1374,12 +1374,19 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
       std::string kind;
       Building b = styled ? MakeStyledBuilding(r, s, sample_in(zone), style, o.pitched_roofs, &kind)
                           : MakeBuilding(r, s, sample_in(zone), o.pitched_roofs);
-      if (attempt > 100 * want) {  // crowded: shrink
-        for (auto* ring : {&b.outer}) for (auto& p : *ring) p = b.centre + (p - b.centre) * 0.6;
-        for (auto& hole : b.holes) for (auto& p : hole) p = b.centre + (p - b.centre) * 0.6;
-        for (auto& bx : b.boxes) for (auto& p : bx.poly) p = b.centre + (p - b.centre) * 0.6;
-        b.half_short_m *= 0.6;
+      auto shrink = [&b](double k) {
+        for (auto* ring : {&b.outer}) for (auto& p : *ring) p = b.centre + (p - b.centre) * k;
+        for (auto& hole : b.holes) for (auto& p : hole) p = b.centre + (p - b.centre) * k;
+        for (auto& bx : b.boxes) for (auto& p : bx.poly) p = b.centre + (p - b.centre) * k;
+        b.half_short_m *= k;
+      };
+      if (styled) {  // small tiles: no building longer than 40 % of the tile's short side
+        const cv::Rect2d bb = BoundsOf(b.outer);
+        const double cap = 0.4 * std::min(o.width, o.height);
+        if (std::max(bb.width, bb.height) > cap) shrink(cap / std::max(bb.width, bb.height));
       }
+      if (attempt > 100 * want) shrink(0.6);  // crowded: shrink
+      if (styled && attempt > 200 * want) shrink(0.6);
       if (r.B(kind == "house" ? 0.9 : 0.6)) FaceStreet(r, s.lay, b);
       if (!TryPlace(P, b.outer, zone, gap)) continue;
       if (kind == "house") AddGarden(r, s, P, b, style, &minors);
@@ -1499,8 +1506,8 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
   const double ang = r.U(0, 2 * kPi);
   double slope = o.ground_slope * r.U(0.2, 1), und_amp = r.U(0.1, 0.5);
   cv::Mat1f und2;
-  if (styled) {  // hilly: 1-4 % slope (default option) and undulations of metres
-    slope = 4 * o.ground_slope * r.U(0.25, 1);
+  if (styled) {  // hilly: 1.6-4 % slope (default option) and undulations of metres
+    slope = 4 * o.ground_slope * r.U(0.4, 1);
     und_amp = r.U(0.5, 2.5);
     und2 = ValueNoise(cv::Size(o.width, o.height), 40 / o.res_m, nrng);
   }
