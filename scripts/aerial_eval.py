@@ -151,6 +151,7 @@ def print_tables(rows, out_json):
         print(line(name, t))
     wrong = [r for r in rows if r.get("ok") and not r["success"]]
     out_json["wrong_list"] = [{"dir": r["dir"], "style": r["style"], "corner_error": r.get("corner_error"),
+                               "roof_corner_error": r.get("roof_corner_error"),
                                "photo_px_per_depth_px": photo_px_per_depth_px(r), "model": r.get("model"),
                                "confidence": r.get("confidence")} for r in wrong]
     has_conf = any(r.get("confidence") is not None for r in rows)
@@ -158,6 +159,8 @@ def print_tables(rows, out_json):
     for r in wrong:
         err = "%.1f px" % r["corner_error"] if r.get("corner_error") is not None else "no corner in view"
         conf = "  confidence %.3g" % r["confidence"] if has_conf and r.get("confidence") is not None else ""
+        if r.get("roof_corner_error") is not None:
+            err += " (roofs %.1f px)" % r["roof_corner_error"]
         print("  %s  %s  photo/depth px %.2f  rot %.0f  model %s  regions %s%s" % (
             r["dir"], err, photo_px_per_depth_px(r), r["rotation_deg"], r.get("model"), r.get("regions"), conf))
     if has_conf:
@@ -311,7 +314,13 @@ def main():
                 row["confidence"] = j["confidence"]
             if j["ok"]:
                 e, nvis = corner_error(h_of(j["homography"]), Ht, truth["corners"], psize)
-                row.update(corner_error=e, corners_visible=nvis)
+                row.update(corner_error=e, corners_visible=nvis, homography=j["homography"])
+                if "lean_m_per_m" in truth:
+                    # styles lean (conventional ortho): the error of the roof outlines as the photo shows
+                    # them, each footprint moved by height * lean; a fit to the roofs is off by this much less
+                    lean = np.array(truth["lean_m_per_m"]) / truth["res_m"]
+                    roofs = [np.array(p) + b["height_m"] * lean for b in truth["buildings"] for p in b["footprint"]]
+                    row["roof_corner_error"] = corner_error(h_of(j["homography"]), Ht, roofs, psize)[0]
         row["success"] = bool(row.get("ok") and row.get("corner_error") is not None and row["corner_error"] <= 5.0)
         rows.append(row)
         s = None
