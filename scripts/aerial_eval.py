@@ -263,22 +263,22 @@ def main():
     if a.buildings:
         lo, _, hi = a.buildings.partition("-")
         gen += ["--buildings", lo] + (["--max-buildings", hi] if hi else [])
-    k = len(styles)
+    n_styles = len(styles)
     for si, st in enumerate(styles):
-        n_st = len(range(si, a.n, k))
+        n_st = len(range(si, a.n, n_styles))
         scenes = os.path.dirname(scene_dir(a.out, st, 0))
         sty = [] if st == "classic" else ["--style", st]
         if n_st and not os.path.isdir(os.path.join(scenes, "city_%04d" % (n_st - 1))):
             subprocess.run([a.mvkp, "synth-city", "-o", scenes, "--n", str(n_st), "--seed", str(a.seed)] + gen + sty,
                            check=True, stdout=subprocess.DEVNULL)
-        n_neg = len(range(si, a.negatives, k))
+        n_neg = len(range(si, a.negatives, n_styles))
         negs = os.path.dirname(scene_dir(a.out, st, 0, negative=True))
         if n_neg and not os.path.isdir(os.path.join(negs, "city_%04d" % (n_neg - 1))):
             subprocess.run([a.mvkp, "synth-city", "-o", negs, "--n", str(n_neg), "--seed", str(a.seed + 1000),
                             "--no-overlap"] + gen + sty, check=True, stdout=subprocess.DEVNULL)
 
     def where(i, negative=False):
-        return styles[i % k], scene_dir(a.out, styles[i % k], i // k, negative)
+        return styles[i % n_styles], scene_dir(a.out, styles[i % n_styles], i // n_styles, negative)
 
     xargs = a.register_args.split()
     rows = []
