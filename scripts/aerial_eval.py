@@ -5,6 +5,22 @@ normalised depth image as the texture baseline, in the same run.
 
   scripts/aerial_eval.py --mvkp build/mvkp --out out/aerial [--n 50] [--seed 1]
                          [--real ../shared/data/aerial/montpellier] [--no-baseline]
+                         [--style classic|suburb|dense|civic|mix|a,b,...] [--size 200]
+                         [--buildings 3-6] [--jobs 2]
+
+Styles (issue 21; `mvkp synth-city --style`, docs/aerial.md "Test data"): with
+one style other than classic the scenes go to OUT/scenes_STYLE/; `mix` (= the
+three new styles) or a comma list cycles the styles by scene index, scene i of
+style k being scene i // len(styles) of that style's own set (same seed).
+classic keeps OUT/scenes/ and the output it always had; the tables below are
+printed after it.
+
+Scale convention of the tables: photo px per depth px = 1 / truth "scale"
+(synth-city's scale is depth px per photo px). 0.3 means a coarse photo (houses
+5-8 photo px across at 0.5 m depth), 3 a fine one. Bins 0.3-0.5, 0.5-1, 1-2, 2-3.4.
+Counts per bin and per style: success (ok and <= 5 px), WRONG (ok and > 5 px:
+reported as a success but wrong, listed with their errors and scene dirs), no
+answer. `confidence` is shown when register's JSON has it.
 
 Per generated scene (mvkp synth-city: ~30 buildings, 1000x1000 depth at
 0.5 m, photo at any rotation, scale 0.3-3, mild perspective):
@@ -23,6 +39,7 @@ Real tile: the orthophoto (0.2 m) onto the nDSM (0.5 m); the truth comes
   from the two georeferences (the photo leans ~6 px, see its README).
 """
 import argparse
+import concurrent.futures
 import json
 import os
 import statistics
@@ -60,6 +77,98 @@ def corner_error(H_est, H_true, corners_depth, photo_size):
         return None, 0
     e = np.linalg.norm(apply(H_est, cp[vis]) - c[vis], axis=1)
     return float(e.mean()), int(vis.sum())
+
+
+SCALE_BINS = [(0.3, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 3.4)]
+NEW_STYLES = ["suburb", "dense", "civic"]
+
+
+def styles_of(arg):
+    if arg == "mix":
+        return list(NEW_STYLES)
+    return [x.strip() for x in arg.split(",") if x.strip()]
+
+
+def scene_dir(out, style, index, negative=False):
+    base = ("negatives" if negative else "scenes") + ("" if style == "classic" else "_" + style)
+    return os.path.join(out, base, "city_%04d" % index)
+
+
+def photo_px_per_depth_px(row):
+    return 1.0 / row["scale"]
+
+
+def bin_of(v):
+    for lo, hi in SCALE_BINS:
+        if lo <= v < hi:
+            return "%g-%g" % (lo, hi)
+    return "<%g" % SCALE_BINS[0][0] if v < SCALE_BINS[0][0] else ">=%g" % SCALE_BINS[-1][1]
+
+
+def tally(rows):
+    succ = [r for r in rows if r["success"]]
+    wrong = [r for r in rows if r.get("ok") and not r["success"]]
+    times = [r["time_ms"]["total"] for r in rows if "time_ms" in r]
+    return {"n": len(rows), "success": len(succ), "wrong": len(wrong), "no_answer": sum(1 for r in rows if not r.get("ok")),
+            "ape_px": statistics.mean(r["corner_error"] for r in succ) if succ else None,
+            "time_ms_median": statistics.median(times) if times else None,
+            "peak_rss_mb_max": max((r["peak_rss_mb"] for r in rows if "peak_rss_mb" in r), default=None)}
+
+
+def print_tables(rows, out_json):
+    """Per style and per scale bin, then every wrong answer."""
+    def line(name, t):
+        ape = "%.2f" % t["ape_px"] if t["ape_px"] is not None else "-"
+        tm = "%.0f" % t["time_ms_median"] if t["time_ms_median"] is not None else "-"
+        rss = "%.1f" % t["peak_rss_mb_max"] if t["peak_rss_mb_max"] is not None else "-"
+        pct = 100.0 * t["success"] / t["n"] if t["n"] else 0
+        return "%-14s %4d %5d (%3.0f%%) %6d %9d %7s %9s %8s" % (name, t["n"], t["success"], pct, t["wrong"], t["no_answer"],
+                                                            ape, tm, rss)
+    head = "%-14s %4s %12s %6s %9s %7s %9s %8s" % ("", "n", "success<=5px", "WRONG", "no answer", "APE px", "median ms",
+                                                  "peak MB")
+    out_json["per_style"], out_json["per_scale_bin"] = {}, {}
+    print("\nper style")
+    print(head)
+    for st in sorted({r["style"] for r in rows}):
+        t = tally([r for r in rows if r["style"] == st])
+        out_json["per_style"][st] = t
+        print(line(st, t))
+    t = tally(rows)
+    print(line("all", t))
+    print("\nper scale bin (photo px per depth px = 1 / synth-city scale)")
+    print(head)
+    for lo, hi in SCALE_BINS + [(None, None)]:
+        if lo is None:
+            sel = [r for r in rows if not any(a <= photo_px_per_depth_px(r) < b for a, b in SCALE_BINS)]
+            name = "outside"
+            if not sel:
+                continue
+        else:
+            sel = [r for r in rows if lo <= photo_px_per_depth_px(r) < hi]
+            name = "%g-%g" % (lo, hi)
+        t = tally(sel)
+        out_json["per_scale_bin"][name] = t
+        print(line(name, t))
+    wrong = [r for r in rows if r.get("ok") and not r["success"]]
+    out_json["wrong_list"] = [{"dir": r["dir"], "style": r["style"], "corner_error": r.get("corner_error"),
+                               "roof_corner_error": r.get("roof_corner_error"),
+                               "photo_px_per_depth_px": photo_px_per_depth_px(r), "model": r.get("model"),
+                               "confidence": r.get("confidence")} for r in wrong]
+    has_conf = any(r.get("confidence") is not None for r in rows)
+    print("\nWRONG, reported as success (%d)%s" % (len(wrong), "" if wrong else ": none"))
+    for r in wrong:
+        err = "%.1f px" % r["corner_error"] if r.get("corner_error") is not None else "no corner in view"
+        conf = "  confidence %.3g" % r["confidence"] if has_conf and r.get("confidence") is not None else ""
+        if r.get("roof_corner_error") is not None:
+            err += " (roofs %.1f px)" % r["roof_corner_error"]
+        print("  %s  %s  photo/depth px %.2f  rot %.0f  model %s  regions %s%s" % (
+            r["dir"], err, photo_px_per_depth_px(r), r["rotation_deg"], r.get("model"), r.get("regions"), conf))
+    if has_conf:
+        print("\nconfidence (per scene): success / wrong / no answer")
+        for r in rows:
+            if r.get("confidence") is not None:
+                kind = "success" if r["success"] else "WRONG" if r.get("ok") else "none"
+                print("  %-40s %-8s %.3g" % (r["dir"], kind, r["confidence"]))
 
 
 def normalised_depth(depth):
@@ -131,46 +240,92 @@ def main():
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--draw", type=int, default=4, help="draw the registration of the first N scenes (register.png)")
     ap.add_argument("--register-args", default="", help="extra arguments for every `mvkp register` (one string)")
+    ap.add_argument("--style", default="classic", help="classic, suburb, dense, civic, mix (the three new ones) or a "
+                    "comma list; several styles are cycled by scene index")
+    ap.add_argument("--size", default=None, help="depth raster size, W or WxH (synth-city default 1000)")
+    ap.add_argument("--buildings", default=None, help="buildings in the depth raster, N or MIN-MAX (per scene)")
+    ap.add_argument("--trees", type=int, default=None, help="trees in the depth raster (default: synth-city's 60 "
+                    "per 1000x1000, scaled to --size)")
+    ap.add_argument("--jobs", type=int, default=1, help="registrations run at once (times are then not idle times)")
+    ap.add_argument("--no-real", action="store_true", help="skip the real tile")
+    ap.add_argument("--no-segmentation", action="store_true", help="skip the depth segmentation score")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    scenes = os.path.join(a.out, "scenes")
-    if not os.path.isdir(os.path.join(scenes, "city_%04d" % (a.n - 1))):
-        subprocess.run([a.mvkp, "synth-city", "-o", scenes, "--n", str(a.n), "--seed", str(a.seed)], check=True,
-                       stdout=subprocess.DEVNULL)
-    negs = os.path.join(a.out, "negatives")
-    if a.negatives and not os.path.isdir(os.path.join(negs, "city_%04d" % (a.negatives - 1))):
-        subprocess.run([a.mvkp, "synth-city", "-o", negs, "--n", str(a.negatives), "--seed", str(a.seed + 1000),
-                        "--no-overlap"], check=True, stdout=subprocess.DEVNULL)
+    styles = styles_of(a.style)
+    gen = []
+    if a.size:
+        w, _, h = a.size.partition("x")
+        gen += ["--width", w, "--height", h or w]
+        if a.trees is None:
+            a.trees = max(4, round(60 * int(w) * int(h or w) / 1e6))
+    if a.trees is not None:
+        gen += ["--trees", str(a.trees)]
+    if a.buildings:
+        lo, _, hi = a.buildings.partition("-")
+        gen += ["--buildings", lo] + (["--max-buildings", hi] if hi else [])
+    n_styles = len(styles)
+    for si, st in enumerate(styles):
+        n_st = len(range(si, a.n, n_styles))
+        scenes = os.path.dirname(scene_dir(a.out, st, 0))
+        sty = [] if st == "classic" else ["--style", st]
+        if n_st and not os.path.isdir(os.path.join(scenes, "city_%04d" % (n_st - 1))):
+            subprocess.run([a.mvkp, "synth-city", "-o", scenes, "--n", str(n_st), "--seed", str(a.seed)] + gen + sty,
+                           check=True, stdout=subprocess.DEVNULL)
+        n_neg = len(range(si, a.negatives, n_styles))
+        negs = os.path.dirname(scene_dir(a.out, st, 0, negative=True))
+        if n_neg and not os.path.isdir(os.path.join(negs, "city_%04d" % (n_neg - 1))):
+            subprocess.run([a.mvkp, "synth-city", "-o", negs, "--n", str(n_neg), "--seed", str(a.seed + 1000),
+                            "--no-overlap"] + gen + sty, check=True, stdout=subprocess.DEVNULL)
+
+    def where(i, negative=False):
+        return styles[i % n_styles], scene_dir(a.out, styles[i % n_styles], i // n_styles, negative)
 
     xargs = a.register_args.split()
     rows = []
     base = {"sift": [], "orb": []}
     seg = [0, 0, 0, 0]
+
+    def register(i, negative=False):
+        d = where(i, negative)[1]
+        # timed and measured without --draw (the drawing keeps the full-size photo)
+        return run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json"] + xargs)
+
+    pool = concurrent.futures.ThreadPoolExecutor(max(1, a.jobs))
+    futures = [pool.submit(register, i) for i in range(a.n)]
+    neg_futures = [pool.submit(register, i, True) for i in range(a.negatives)]
     for i in range(a.n):
-        d = os.path.join(scenes, "city_%04d" % i)
+        style, d = where(i)
         truth = json.load(open(os.path.join(d, "truth.json")))
         Ht = h_of(truth["photo_to_depth"])
         psize = truth["photo_size"]
-        # timed and measured without --draw (the drawing keeps the full-size
-        # photo); the first few scenes are drawn in a second run
-        j, err = run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json"]
-                          + xargs)
+        j, err = futures[i].result()
+        # the first few scenes are drawn in a second run
         if i < a.draw:
             run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json",
                       "--draw", os.path.join(d, "register.png")] + xargs)
         row = {"scene": i, "scale": truth["scale"], "rotation_deg": truth["rotation_deg"],
-               "depth_overlap": truth["depth_overlap"]}
+               "depth_overlap": truth["depth_overlap"], "style": style, "dir": d}
         if j is None:
             row.update(ok=False, error=err)
         else:
             row.update(ok=j["ok"], reason=j["reason"], model=j["model"], time_ms=j["time_ms"], peak_rss_mb=j["peak_rss_mb"], edge=j.get("edge"),
                        peak_rss_above_start_mb=j.get("peak_rss_above_start_mb"), regions=j["regions"])
+            if j.get("confidence") is not None:
+                row["confidence"] = j["confidence"]
             if j["ok"]:
                 e, nvis = corner_error(h_of(j["homography"]), Ht, truth["corners"], psize)
-                row.update(corner_error=e, corners_visible=nvis)
+                row.update(corner_error=e, corners_visible=nvis, homography=j["homography"])
+                if "lean_m_per_m" in truth:
+                    # styles lean (conventional ortho): the error of the roof outlines as the photo shows
+                    # them, each footprint moved by height * lean; a fit to the roofs is off by this much less
+                    lean = np.array(truth["lean_m_per_m"]) / truth["res_m"]
+                    roofs = [np.array(p) + b["height_m"] * lean for b in truth["buildings"] for p in b["footprint"]]
+                    row["roof_corner_error"] = corner_error(h_of(j["homography"]), Ht, roofs, psize)[0]
         row["success"] = bool(row.get("ok") and row.get("corner_error") is not None and row["corner_error"] <= 5.0)
         rows.append(row)
-        s, _ = run_json([a.mvkp, "segment", "depth", os.path.join(d, "depth.tif"), "--json"])
+        s = None
+        if not a.no_segmentation:
+            s, _ = run_json([a.mvkp, "segment", "depth", os.path.join(d, "depth.tif"), "--json"])
         if s is not None:
             bid = cv2.imread(os.path.join(d, "building_id.png"), cv2.IMREAD_UNCHANGED)
             f, p, fa, nr = segmentation_score(s["regions"], bid)
@@ -188,9 +343,10 @@ def main():
 
     neg_rows = []
     for i in range(a.negatives):
-        d = os.path.join(negs, "city_%04d" % i)
-        j, err = run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json"] + xargs)
+        j, err = neg_futures[i].result()
         neg_rows.append({"scene": i, "ok": bool(j and j["ok"]), "error": err, "reason": j["reason"] if j else None})
+        if len(styles) > 1 or styles[0] != "classic":
+            neg_rows[-1].update(style=where(i, True)[0], dir=where(i, True)[1])
 
     succ = [r for r in rows if r["success"]]
     wrong = [r for r in rows if r.get("ok") and not r["success"]]
@@ -224,7 +380,7 @@ def main():
     # The real tile: the truth from the georeferences.
     real = {}
     ortho, ndsm = os.path.join(a.real, "ortho_rgb_20cm.tif"), os.path.join(a.real, "ndsm_50cm.tif")
-    if os.path.exists(ortho) and os.path.exists(ndsm):
+    if os.path.exists(ortho) and os.path.exists(ndsm) and not a.no_real:
         j, err = run_json([a.mvkp, "register", ndsm, ortho, "--json", "--draw", os.path.join(a.out, "montpellier.png")] + xargs)
         # photo px (0.2 m, UL 770549.8 / 6277600.2) -> depth px (0.5 m, UL 770549.75 / 6277600.25), pixel centres
         # at integer coordinates: X = x0p + (u + 0.5) * 0.2, u_d = (X - x0d) / 0.5 - 0.5.
@@ -240,10 +396,11 @@ def main():
             real["note"] = "the photo is not a true ortho: roofs lean ~1.2 m E, 1.4 m S (~3.7 depth px)"
     out["real_tile"] = real
 
-    with open(os.path.join(a.out, "summary.json"), "w") as f:
-        json.dump(out, f, indent=1)
     brief = {k: v for k, v in out.items() if k != "rows"}
     print(json.dumps(brief, indent=1))
+    print_tables(rows, out)
+    with open(os.path.join(a.out, "summary.json"), "w") as f:
+        json.dump(out, f, indent=1)
 
 
 if __name__ == "__main__":

@@ -22,12 +22,15 @@ struct SynthCityArgs {
   std::string outdir;
   int n = 1;
   std::uint64_t seed = 1;
+  int max_buildings = -1;  // > 0: scene i has buildings..max_buildings buildings (from its seed)
   CityOptions opt;
 };
 
 int RunSynthCity(SynthCityArgs& a) {
   Require(a.n >= 1 && a.n <= 100000, ErrorCode::kInvalidArgument, "--n must be in 1..100000");
   a.opt.Check();
+  Require(a.max_buildings < 0 || (a.max_buildings >= a.opt.buildings && a.max_buildings <= 5000),
+          ErrorCode::kInvalidArgument, "--max-buildings must be >= --buildings and <= 5000");
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(a.outdir, ec);
@@ -35,7 +38,9 @@ int RunSynthCity(SynthCityArgs& a) {
   for (int i = 0; i < a.n; ++i) {
     const std::uint64_t seed = a.seed * 1000003ull + std::uint64_t(i);
     const auto t0 = std::chrono::steady_clock::now();
-    const City c = MakeCity(a.opt, seed);
+    CityOptions opt = a.opt;
+    if (a.max_buildings >= 0) opt.buildings += int(seed % std::uint64_t(a.max_buildings - a.opt.buildings + 1));
+    const City c = MakeCity(opt, seed);
     char name[32];
     std::snprintf(name, sizeof name, "city_%04d", i);
     const std::string dir = (fs::path(a.outdir) / name).string();
@@ -52,6 +57,7 @@ int RunSynthCity(SynthCityArgs& a) {
                               {"scale", c.scale},
                               {"rotation_deg", c.rotation_deg},
                               {"overlap", a.opt.overlap},
+                              {"style", a.opt.style},
                               {"photo_overlap", c.photo_overlap},
                               {"depth_overlap", c.depth_overlap},
                               {"ms", std::round(ms)}};
@@ -74,6 +80,8 @@ void RegisterSynthCity(CLI::App& app, int* code) {
   c->add_option("--n", a->n, "number of scenes")->capture_default_str();
   c->add_option("--seed", a->seed, "random seed (scene i uses seed * 1000003 + i)")->capture_default_str();
   c->add_option("--buildings", o.buildings, "buildings inside the depth raster")->capture_default_str();
+  c->add_option("--max-buildings", a->max_buildings,
+                 "with it, each scene has --buildings..--max-buildings buildings (chosen from the scene's seed)");
   c->add_option("--trees", o.trees, "trees inside the depth raster")->capture_default_str();
   c->add_option("--width", o.width, "depth raster width (pixels)")->capture_default_str();
   c->add_option("--height", o.height, "depth raster height (pixels)")->capture_default_str();
@@ -95,6 +103,12 @@ void RegisterSynthCity(CLI::App& app, int* code) {
   c->add_option("--noise", o.photo_noise, "max photo noise sigma (grey levels)")->capture_default_str();
   c->add_flag("!--no-overlap", o.overlap, "the photo shows a different area (negative tests)");
   c->add_flag("!--no-pitched", o.pitched_roofs, "flat roofs only");
+  c->add_option("--style", o.style,
+                "classic (the original generator), suburb (houses, gardens, hedges, pools, two street grids), dense "
+                "(bars, blocks, halls with parking lots, dark roofs) or civic (round and star-shaped buildings among "
+                "both); every style but classic has hilly ground, moved cars and a leaning (not true) orthophoto")
+      ->check(CLI::IsMember(CityStyles()))
+      ->capture_default_str();
   c->callback([a, code] { *code = RunSynthCity(*a); });
 }
 

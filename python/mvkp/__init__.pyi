@@ -178,7 +178,8 @@ class CityOptions:
     pitched_roofs: bool
     photo_blur: float
     photo_noise: float
-    def __init__(self, *, width: int = 1000, height: int = 1000, buildings: int = 30, res_m: float = 0.5, trees: int = 60, min_scale: float = 0.3, max_scale: float = 3.0, max_perspective: float = 0.1, sun_azimuth_deg: float = -1.0, sun_elevation_deg: float = -1.0, missing_returns: float = 0.01, depth_noise_m: float = 0.05, ground_slope: float = 0.01, photo_max_side: int = 2000, min_coverage: float = 0.5, max_coverage: float = 1.2, overlap: bool = True, pitched_roofs: bool = True, photo_blur: float = 0.8, photo_noise: float = 4.0) -> None: ...
+    style: str
+    def __init__(self, *, width: int = 1000, height: int = 1000, buildings: int = 30, res_m: float = 0.5, trees: int = 60, min_scale: float = 0.3, max_scale: float = 3.0, max_perspective: float = 0.1, sun_azimuth_deg: float = -1.0, sun_elevation_deg: float = -1.0, missing_returns: float = 0.01, depth_noise_m: float = 0.05, ground_slope: float = 0.01, photo_max_side: int = 2000, min_coverage: float = 0.5, max_coverage: float = 1.2, overlap: bool = True, pitched_roofs: bool = True, photo_blur: float = 0.8, photo_noise: float = 4.0, style: str = 'classic') -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> CityOptions: ...
     def check(self) -> None:
@@ -1053,7 +1054,7 @@ def load_model(path: str) -> Model:
 def load_region_lda(path: str) -> RegionLda:
     """A region LDA file from `mvkp ortho-models train-lda`."""
 
-def make_city(seed: int, options: CityOptions | None = None, *, width: int = 1000, height: int = 1000, buildings: int = 30, res_m: float = 0.5, trees: int = 60, min_scale: float = 0.3, max_scale: float = 3.0, max_perspective: float = 0.1, sun_azimuth_deg: float = -1.0, sun_elevation_deg: float = -1.0, missing_returns: float = 0.01, depth_noise_m: float = 0.05, ground_slope: float = 0.01, photo_max_side: int = 2000, min_coverage: float = 0.5, max_coverage: float = 1.2, overlap: bool = True, pitched_roofs: bool = True, photo_blur: float = 0.8, photo_noise: float = 4.0) -> City:
+def make_city(seed: int, options: CityOptions | None = None, *, width: int = 1000, height: int = 1000, buildings: int = 30, res_m: float = 0.5, trees: int = 60, min_scale: float = 0.3, max_scale: float = 3.0, max_perspective: float = 0.1, sun_azimuth_deg: float = -1.0, sun_elevation_deg: float = -1.0, missing_returns: float = 0.01, depth_noise_m: float = 0.05, ground_slope: float = 0.01, photo_max_side: int = 2000, min_coverage: float = 0.5, max_coverage: float = 1.2, overlap: bool = True, pitched_roofs: bool = True, photo_blur: float = 0.8, photo_noise: float = 4.0, style: str = 'classic') -> City:
     """A synthetic city reproducible from (options, seed). Keyword arguments are CityOptions fields (width=1000, height=1000, buildings=30, ...)."""
 
 def make_scene_view(target: numpy.ndarray, seed: int, background: numpy.ndarray | None = None, options: SceneOptions | None = None, *, width: int = 640, height: int = 480, min_scale: float = 0.4, max_scale: float = 1.6, perspective: float = 0.1, clutter: bool = True, lighting: bool = True, max_blur: float = 1.2, max_noise: float = 5.0, target_max_side: int = 320) -> tuple:

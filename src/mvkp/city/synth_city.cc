@@ -113,6 +113,20 @@ struct Layout {
   cv::Point2d Across(int fam) const { return fam == 0 ? cv::Point2d(ca, sa) : cv::Point2d(-sa, ca); }
 };
 
+// The street layout: one grid, or (styles other than classic) a second, rotated grid
+// on the far side of a straight line.
+struct Streets : Layout {
+  std::vector<Layout> alt;  // 0 or 1
+  cv::Point2d split_n{1, 0};
+  double split_d = 0;
+  const Layout& At(double x, double y) const {
+    return !alt.empty() && x * split_n.x + y * split_n.y > split_d ? alt[0] : *this;
+  }
+  RoadQuery Query(double x, double y) const { return At(x, y).Layout::Query(x, y); }
+  cv::Point2d AcrossAt(int fam, cv::Point2d p) const { return At(p.x, p.y).Across(fam); }
+  double AlphaAt(cv::Point2d p) const { return At(p.x, p.y).alpha; }
+};
+
 bool OnRoad(const RoadQuery& q, double extra = 0) {
   return std::abs(q.m[0]) < q.hw[0] + extra || std::abs(q.m[1]) < q.hw[1] + extra;
 }
@@ -135,6 +149,8 @@ struct Building {
   int material = 0;                             // 0 gravel 1 membrane 2 tar 3 green | 10 tiles 11 metal
   cv::Vec3b colour;
   std::vector<RoofBox> boxes;
+  double nodata = 0;                            // styles: share of roof pixels without a LiDAR return
+  cv::Vec3b wall{170, 172, 175};                // styles: facade colour (lean)
 };
 
 struct Tree {
@@ -149,8 +165,29 @@ struct Car {
   cv::Vec3b colour;
 };
 
+enum class Style { kClassic = 0, kSuburb = 1, kDense = 2, kCivic = 3 };
+
+// Ground patches of the styles other than classic.
+struct Patch {
+  enum Kind { kCoping = 0, kWater = 1, kHedge = 2 } kind;
+  std::vector<cv::Point2d> poly;  // world
+  double h_m = 0;                 // hedge height
+};
+
+// A parking lot: a rectangle with rows of stalls across axis v.
+struct Lot {
+  std::vector<cv::Point2d> poly;  // world
+  cv::Point2d origin, u, v;       // world origin (a corner) and unit axes (world)
+  double w_m = 0, d_m = 0;
+};
+
 struct Scene {
-  Layout lay;
+  Streets lay;
+  Style style = Style::kClassic;
+  std::vector<Patch> patches;
+  std::vector<Lot> lots;
+  int first_minor = 1 << 30;  // s.b[first_minor..]: sheds, never counted
+  cv::Point2d lean_px{0, 0};  // photo displacement per metre of height (world px), styles only
   std::vector<Building> b;  // counted ones first
   int counted = 0;
   std::vector<Tree> t;
@@ -198,7 +235,7 @@ cv::Mat1b PolyMask(const std::vector<cv::Point2d>& outer, const std::vector<std:
 
 // ----------------------------------------------------------------------------
 // Heights (nDSM), classes and surface slopes rendered on a grid.
-enum Cls : uchar { kGround = 0, kRoof = 1, kRoofBox = 2, kTree = 3, kCar = 4 };
+enum Cls : uchar { kGround = 0, kRoof = 1, kRoofBox = 2, kTree = 3, kCar = 4, kWater = 5, kHedge = 6, kCoping = 7 };
 
 struct Raster {
   cv::Mat1f h;       // metres above ground
@@ -234,11 +271,20 @@ Raster RenderHeights(const Scene& s, const Grid& g, bool slopes, bool noisy_tree
     if (clip.empty()) continue;
     const cv::Mat1b m = PolyMask(b.outer, b.holes, g, box);
     cv::Mat1f R(box.size(), 0.f), GX, GY, D;
-    if (slopes || b.roof == RoofType::kHip) cv::distanceTransform(m, D, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-    if (b.roof == RoofType::kHip) {
+    if (slopes || b.roof == RoofType::kHip || b.roof == RoofType::kDome)
+      cv::distanceTransform(m, D, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    if (b.roof == RoofType::kHip || b.roof == RoofType::kDome) {
       for (int y = 0; y < D.rows; ++y)
-        for (int x = 0; x < D.cols; ++x)
-          R(y, x) = m(y, x) ? float(std::max(0.0, (D(y, x) - 0.5) * px_m) * b.pitch) : 0.f;
+        for (int x = 0; x < D.cols; ++x) {
+          if (!m(y, x)) continue;
+          const double d = std::max(0.0, (D(y, x) - 0.5) * px_m);
+          if (b.roof == RoofType::kHip) {
+            R(y, x) = float(d * b.pitch);
+          } else {  // dome: radius half_short_m, rise pitch (metres)
+            const double q = 1 - std::min(1.0, d / b.half_short_m);
+            R(y, x) = float(b.pitch * std::sqrt(std::max(0.0, 1 - q * q)));
+          }
+        }
       if (slopes) {
         cv::Sobel(R, GX, CV_32F, 1, 0, 3, 1.0 / (8 * px_m));
         cv::Sobel(R, GY, CV_32F, 0, 1, 3, 1.0 / (8 * px_m));
@@ -254,6 +300,17 @@ Raster RenderHeights(const Scene& s, const Grid& g, bool slopes, bool noisy_tree
           const double sg = v >= 0 ? -b.pitch : b.pitch;
           GX(y, x) = float(sg * b.short_axis.x);
           GY(y, x) = float(sg * b.short_axis.y);
+        }
+    } else if (b.roof == RoofType::kShed) {  // one plane, rising along short_axis
+      GX = cv::Mat1f(box.size(), 0.f), GY = cv::Mat1f(box.size(), 0.f);
+      for (int y = 0; y < R.rows; ++y)
+        for (int x = 0; x < R.cols; ++x) {
+          if (!m(y, x)) continue;
+          const cv::Point2d w = g.ToWorld(box.x + x, box.y + y) - b.centre;
+          const double v = (w.x * b.short_axis.x + w.y * b.short_axis.y) * s.res;
+          R(y, x) = float(std::clamp(b.half_short_m + v, 0.0, 2 * b.half_short_m) * b.pitch);
+          GX(y, x) = float(b.pitch * b.short_axis.x);
+          GY(y, x) = float(b.pitch * b.short_axis.y);
         }
     }
     for (int y = clip.y; y < clip.y + clip.height; ++y)
@@ -282,6 +339,26 @@ Raster RenderHeights(const Scene& s, const Grid& g, bool slopes, bool noisy_tree
           }
     }
   }
+  Rng nr(noise_seed);
+  for (const Patch& p : s.patches) {  // pools and hedges, on the ground only
+    const cv::Rect bb = PixBox(p.poly, g, 1);
+    const cv::Rect bc = bb & all;
+    if (bc.empty()) continue;
+    const cv::Mat1b bm = PolyMask(p.poly, {}, g, bb);
+    for (int y = bc.y; y < bc.y + bc.height; ++y)
+      for (int x = bc.x; x < bc.x + bc.width; ++x) {
+        if (!bm(y - bb.y, x - bb.x)) continue;
+        const uchar c = r.cls(y, x);
+        if (p.kind == Patch::kHedge) {
+          if (c != kGround) continue;
+          double h = p.h_m;
+          if (noisy_trees) h *= nr.U(0.8, 1.0);
+          r.h(y, x) = float(h), r.cls(y, x) = kHedge;
+        } else if (c == kGround || c == kCoping || c == kWater) {
+          r.cls(y, x) = p.kind == Patch::kWater ? kWater : kCoping;
+        }
+      }
+  }
   for (const Car& c : s.cars) {
     const cv::Rect bb = PixBox(c.poly, g, 1);
     const cv::Rect bc = bb & all;
@@ -291,7 +368,6 @@ Raster RenderHeights(const Scene& s, const Grid& g, bool slopes, bool noisy_tree
       for (int x = bc.x; x < bc.x + bc.width; ++x)
         if (bm(y - bb.y, x - bb.x) && r.cls(y, x) == kGround) r.h(y, x) = 1.5f, r.cls(y, x) = kCar;
   }
-  Rng nr(noise_seed);
   for (int ti = 0; ti < int(s.t.size()); ++ti) {
     const Tree& t = s.t[ti];
     const double rpx = t.r_m / s.res * 1.25;  // world px, with the lobes
@@ -515,6 +591,126 @@ Building MakeBuilding(Rng& r, const Scene& s, cv::Point2d centre_world, bool pit
   return b;
 }
 
+// ----------------------------------------------------------------------------
+// Buildings of the styles other than classic. `kind` tells what goes around them:
+// "house" (a garden), "hall" (a parking lot) or "".
+Building MakeStyledBuilding(Rng& r, const Scene& s, cv::Point2d centre_world, Style style, bool pitched_ok,
+                            std::string* kind) {
+  Building b;
+  kind->clear();
+  double w = 10, h = 10;
+  LocalShape ls;
+  enum { kHouse, kBar, kBlock, kHall, kTower, kRound, kStar } k = kHouse;
+  const double p = r.U();
+  if (style == Style::kSuburb) {
+    k = p < 0.9 ? kHouse : kBlock;
+  } else if (style == Style::kDense) {
+    k = p < 0.35 ? kBar : p < 0.65 ? kBlock : p < 0.88 ? kHall : kTower;
+  } else {  // civic
+    k = p < 0.22 ? kRound : p < 0.4 ? kStar : p < 0.7 ? kHouse : p < 0.82 ? kBar : p < 0.92 ? kBlock : kHall;
+  }
+  switch (k) {
+    case kHouse:
+      w = r.U(7.5, 13), h = r.U(9, 16);
+      b.eave_m = r.U(2.8, 6.5);
+      ls = r.B(0.7) ? LocalShape{RectPts(w, h), {}, "rect"} : MakeShape(r, w, h, false);
+      if (ls.name == "irregular" || ls.name == "courtyard") ls = LocalShape{RectPts(w, h), {}, "rect"};
+      *kind = "house";
+      break;
+    case kBar:
+      w = r.U(10, 15), h = r.U(30, 80);
+      b.eave_m = r.U(10, 28);
+      ls = LocalShape{RectPts(w, h), {}, "rect"};
+      break;
+    case kBlock:
+      w = r.U(24, 50), h = r.U(24, 55);
+      b.eave_m = r.U(9, 24);
+      ls = MakeShape(r, w, h, std::min(w, h) >= 30);
+      if (ls.name == "rect" || ls.name == "irregular") ls = MakeShape(r, w, h, std::min(w, h) >= 30);
+      break;
+    case kHall:
+      w = r.U(35, 75), h = r.U(25, 50);
+      b.eave_m = r.U(6, 11);
+      ls = LocalShape{RectPts(w, h), {}, "rect"};
+      *kind = "hall";
+      break;
+    case kTower:
+      w = r.U(18, 32), h = r.U(18, 32);
+      b.eave_m = r.U(25, 40);
+      ls = r.B(0.5) ? LocalShape{RectPts(w, h), {}, "rect"} : MakeShape(r, w, h, false);
+      break;
+    case kRound: {
+      const double rad = r.U(7, 22);
+      w = h = 2 * rad;
+      b.eave_m = r.U(6, 18);
+      ls.name = "round";
+      const int n = 48;
+      for (int i = 0; i < n; ++i) ls.outer.push_back(cv::Point2d(std::cos(2 * kPi * i / n), std::sin(2 * kPi * i / n)) * rad);
+      break;
+    }
+    case kStar: {
+      const double R = r.U(12, 26), q = r.U(0.45, 0.65);
+      const int n = r.I(5, 8);
+      w = h = 2 * R;
+      b.eave_m = r.U(8, 20);
+      ls.name = "star";
+      for (int i = 0; i < 2 * n; ++i) {
+        const double a = kPi * i / n, rr = i % 2 ? R * q : R;
+        ls.outer.push_back(cv::Point2d(std::cos(a), std::sin(a)) * rr);
+      }
+      break;
+    }
+  }
+  b.shape = ls.name;
+  double ang = s.lay.AlphaAt(centre_world) + r.I(0, 3) * kPi / 2 + r.U(-0.02, 0.02);
+  if (k == kRound || k == kStar || r.B(0.08)) ang = r.U(0, 2 * kPi);
+  const double c = std::cos(ang), sn = std::sin(ang);
+  auto place = [&](const std::vector<cv::Point2d>& v) {
+    std::vector<cv::Point2d> o;
+    for (const auto& pt : v) o.push_back(centre_world + cv::Point2d(pt.x * c - pt.y * sn, pt.x * sn + pt.y * c) / s.res);
+    return o;
+  };
+  b.outer = place(ls.outer);
+  for (const auto& hole : ls.holes) b.holes.push_back(place(hole));
+  b.centre = centre_world;
+  const cv::Point2d ax = w < h ? cv::Point2d(c, sn) : cv::Point2d(-sn, c);  // across the long side
+  if (k == kRound) {
+    b.half_short_m = w / 2;
+    if (r.B(0.75)) b.roof = RoofType::kDome, b.pitch = b.half_short_m * r.U(0.3, 0.7);
+  } else if (k == kHouse && pitched_ok) {
+    const double pr = r.U();
+    b.roof = pr < 0.4 && ls.name == "rect" ? RoofType::kGable : pr < 0.75 ? RoofType::kHip : pr < 0.9 ? RoofType::kShed
+                                                                                                   : RoofType::kFlat;
+    b.short_axis = ax * (r.B(0.5) ? 1.0 : -1.0);
+    b.half_short_m = std::min(w, h) / 2;
+    b.pitch = std::tan((b.roof == RoofType::kShed ? r.U(8, 18) : r.U(25, 45)) * kPi / 180);
+  }
+  PickRoofMaterial(r, b);
+  if (b.roof == RoofType::kDome) b.material = 11, b.colour = Jitter(r, r.Pick(std::vector<cv::Vec3b>{{120, 130, 90}, {150, 150, 145}, {90, 120, 160}}), 0.08);
+  if (k == kHall) b.material = r.B(0.6) ? 1 : 0, b.colour = Jitter(r, b.material == 1 ? cv::Vec3b(212, 214, 216) : cv::Vec3b(150, 152, 155), 0.06);
+  if (b.material == 2 && style != Style::kSuburb && r.B(0.7)) b.nodata = r.U(0.4, 0.95);  // dark roof, few returns
+  b.wall = Jitter(r, r.Pick(std::vector<cv::Vec3b>{{170, 172, 175}, {150, 175, 195}, {120, 130, 140}, {185, 195, 205}}), 0.08);
+  if (b.roof == RoofType::kFlat && w * h > 400 && k != kRound) {
+    const int n = k == kHall ? r.I(2, 8) : r.I(1, 5);
+    std::vector<cv::Point2f> outer_f(b.outer.begin(), b.outer.end());
+    for (int i = 0; i < n; ++i) {
+      const double bw = r.U(1.5, 5), bh = r.U(1.5, 5);
+      const cv::Point2d at(r.U(-w / 2 + bw, w / 2 - bw), r.U(-h / 2 + bh, h / 2 - bh));
+      std::vector<cv::Point2d> pts = RectPts(bw, bh);
+      for (auto& pt : pts) pt += at;
+      const std::vector<cv::Point2d> world = place(pts);
+      bool inside = true;
+      for (const auto& pt : world) inside &= cv::pointPolygonTest(outer_f, cv::Point2f(pt), true) > 1.0;
+      for (const auto& hole : b.holes) {
+        std::vector<cv::Point2f> hf(hole.begin(), hole.end());
+        for (const auto& pt : world) inside &= cv::pointPolygonTest(hf, cv::Point2f(pt), true) < -1.0;
+      }
+      if (inside) b.boxes.push_back({world, r.U(1, 3)});
+    }
+  }
+  return b;
+}
+
 void Shift(Building& b, cv::Point2d d) {
   for (auto& p : b.outer) p += d;
   for (auto& h : b.holes) for (auto& p : h) p += d;
@@ -524,10 +720,10 @@ void Shift(Building& b, cv::Point2d d) {
 
 // Moves a building across the nearest road's direction so that it faces the street
 // with a small setback.
-void FaceStreet(Rng& r, const Layout& L, Building& b) {
+void FaceStreet(Rng& r, const Streets& L, Building& b) {
   const RoadQuery q = L.Query(b.centre.x, b.centre.y);
   const int fam = std::abs(q.m[0]) - q.hw[0] < std::abs(q.m[1]) - q.hw[1] ? 0 : 1;
-  const cv::Point2d a = L.Across(fam);
+  const cv::Point2d a = L.AcrossAt(fam, b.centre);
   double lo = 1e18, hi = -1e18;
   for (const auto& p : b.outer) {
     const double t = (p - b.centre).dot(a) * L.res;
@@ -578,7 +774,10 @@ cv::Mat1f OccluderField(const cv::Mat1f& h, double res_m, double az_deg, double 
 
 inline uchar Sat(double v) { return cv::saturate_cast<uchar>(v); }
 
-// True orthophoto of the ground covered by grid g.
+void ApplyLean(const Scene& s, const Grid& g, const Raster& r, cv::Mat3b& img, cv::Mat1i* ids);
+
+// True orthophoto of the ground covered by grid g (conventional, leaning, for the
+// styles other than classic).
 cv::Mat3b RenderOrtho(const Scene& s, const Grid& g, cv::Mat1i* ids) {
   const Raster r = RenderHeights(s, g, true, false, 0);
   *ids = r.id;
@@ -591,7 +790,7 @@ cv::Mat3b RenderOrtho(const Scene& s, const Grid& g, cv::Mat1i* ids) {
   rng.fill(fine, cv::RNG::NORMAL, 0.f, 1.f);
   const cv::Vec3b grass_a(55, 118, 72), grass_b(80, 145, 135), paving(150, 160, 168), plaza(168, 178, 185);
   cv::Mat3b img(sz);
-  const Layout& L = s.lay;
+  const Streets& L = s.lay;
   auto line_cov = [&](double d, double hw) { return std::clamp((hw + px_m / 2 - std::abs(d)) / px_m, 0.0, 1.0); };
   for (int y = 0; y < g.h; ++y) {
     for (int x = 0; x < g.w; ++x) {
@@ -630,6 +829,12 @@ cv::Mat3b RenderOrtho(const Scene& s, const Grid& g, cv::Mat1i* ids) {
         const Tree& t = s.t[size_t(r.tree_i(y, x))];
         const double q = r.tree_r(y, x), leaf = n_leaf(y, x);
         col = cv::Vec3d(t.colour) * (0.7 + 0.55 * leaf + 0.05 * nf) * (1.05 - 0.25 * q);
+      } else if (cl == kWater) {  // swimming pool
+        col = cv::Vec3d(200, 160, 60) * (1 + 0.04 * nf + 0.12 * (nm - 0.5));
+      } else if (cl == kCoping) {
+        col = cv::Vec3d(200, 205, 210) * (1 + 0.03 * nf);
+      } else if (cl == kHedge) {
+        col = cv::Vec3d(40, 92, 50) * (0.75 + 0.5 * n_leaf(y, x) + 0.05 * nf);
       } else {
         const RoadQuery q = L.Query(g.ToWorld(x, y).x, g.ToWorld(x, y).y);
         const double a0 = std::abs(q.m[0]) - q.hw[0], a1 = std::abs(q.m[1]) - q.hw[1];
@@ -674,6 +879,25 @@ cv::Mat3b RenderOrtho(const Scene& s, const Grid& g, cv::Mat1i* ids) {
       }
       img(y, x) = cv::Vec3b(Sat(col[0]), Sat(col[1]), Sat(col[2]));
     }
+  }
+  // Parking lots: asphalt with stall lines (ground pixels only).
+  for (const Lot& lot : s.lots) {
+    const cv::Rect bb = PixBox(lot.poly, g, 1);
+    const cv::Rect bc = bb & cv::Rect(0, 0, g.w, g.h);
+    if (bc.empty()) continue;
+    const cv::Mat1b bm = PolyMask(lot.poly, {}, g, bb);
+    for (int y = bc.y; y < bc.y + bc.height; ++y)
+      for (int x = bc.x; x < bc.x + bc.width; ++x) {
+        if (!bm(y - bb.y, x - bb.x) || (r.cls(y, x) != kGround && r.cls(y, x) != kCar)) continue;
+        const cv::Point2d w = (g.ToWorld(x, y) - lot.origin) * s.res;
+        const double u = w.dot(lot.u), v = w.dot(lot.v), vv = std::fmod(v, 17.5);
+        const bool stall = vv < 5 || (vv >= 11.5 && vv < 16.5);
+        double paint = stall ? line_cov(std::fmod(u - 0.5 + 25.0, 2.5) - 1.25, 0.06) : 0;
+        if (vv >= 16.5) paint = 0.6;  // kerbed island
+        const double a = 82 * (1 + 0.05 * fine(y, x) + 0.1 * (n_big(y, x) - 0.5));
+        const cv::Vec3d col = cv::Vec3d(a * 1.02, a, a * 0.98) * (1 - 0.85 * paint) + cv::Vec3d(225, 225, 225) * (0.85 * paint);
+        img(y, x) = cv::Vec3b(Sat(col[0]), Sat(col[1]), Sat(col[2]));
+      }
   }
   // Cars: body, windscreen and rear window.
   for (const Car& c : s.cars) {
@@ -720,6 +944,7 @@ cv::Mat3b RenderOrtho(const Scene& s, const Grid& g, cv::Mat1i* ids) {
       const double kb = k * (1 - sh * 0.38), kg = k * (1 - sh * 0.48), kr = k * (1 - sh * 0.54);
       p = cv::Vec3b(Sat(p[0] * kb), Sat(p[1] * kg), Sat(p[2] * kr));
     }
+  if (s.style != Style::kClassic) ApplyLean(s, g, r, img, ids);
   return img;
 }
 
@@ -809,8 +1034,15 @@ const char* RoofTypeName(RoofType r) {
   switch (r) {
     case RoofType::kGable: return "gable";
     case RoofType::kHip: return "hip";
+    case RoofType::kShed: return "shed";
+    case RoofType::kDome: return "dome";
     default: return "flat";
   }
+}
+
+const std::vector<std::string>& CityStyles() {
+  static const std::vector<std::string> all{"classic", "suburb", "dense", "civic"};
+  return all;
 }
 
 void CityOptions::Check() const {
@@ -831,6 +1063,8 @@ void CityOptions::Check() const {
   req(min_coverage > 0.05 && min_coverage <= max_coverage && max_coverage <= 3,
       "city: need 0.05 < min_coverage <= max_coverage <= 3");
   req(photo_blur >= 0 && photo_blur <= 10 && photo_noise >= 0 && photo_noise <= 100, "city: photo_blur/photo_noise out of range");
+  req(std::find(CityStyles().begin(), CityStyles().end(), style) != CityStyles().end(),
+      "city: style must be classic, suburb, dense or civic");
 }
 
 double PhotoOverlap(const cv::Matx33d& H, cv::Size photo, cv::Size depth) {
@@ -846,9 +1080,222 @@ double PhotoOverlap(const cv::Matx33d& H, cv::Size photo, cv::Size depth) {
   return double(in) / (n * n);
 }
 
+
+namespace {
+
+// ----------------------------------------------------------------------------
+// Styles other than classic: what goes around a building, once it is placed.
+
+// Marks `poly` taken if it lies on free ground inside the placement grid.
+bool TryPlaceFree(Placer& P, const std::vector<cv::Point2d>& poly) {
+  const cv::Rect box = PixBox(poly, P.g, 1);
+  if ((box & cv::Rect(0, 0, P.g.w, P.g.h)) != box) return false;
+  const cv::Mat1b m = PolyMask(poly, {}, P.g, box);
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x)
+      if (m(y, x) && P.occ(box.y + y, box.x + x)) return false;
+  std::vector<std::vector<cv::Point>> o{ToFixed(poly, P.g, {0, 0})};
+  cv::fillPoly(P.occ, o, cv::Scalar(2), cv::LINE_8, 8);
+  return true;
+}
+
+// An oriented rectangle (world px) from a centre (world px), unit axes and half sizes in metres.
+std::vector<cv::Point2d> OrientedRect(cv::Point2d c, cv::Point2d a, cv::Point2d b, double ha_m, double hb_m, double res) {
+  const cv::Point2d A = a * (ha_m / res), B = b * (hb_m / res);
+  return {c - A - B, c + A - B, c + A + B, c - A + B};
+}
+
+struct Frame {  // a building's frame: `away` from its street, `side` along it, extents in metres
+  cv::Point2d away, side;
+  double lo_a, hi_a, lo_s, hi_s;
+};
+
+Frame FrameOf(const Streets& L, const Building& b, double res) {
+  const RoadQuery q = L.Query(b.centre.x, b.centre.y);
+  const int fam = std::abs(q.m[0]) - q.hw[0] < std::abs(q.m[1]) - q.hw[1] ? 0 : 1;
+  Frame f;
+  f.away = L.AcrossAt(fam, b.centre) * (q.m[fam] >= 0 ? 1.0 : -1.0);
+  f.side = cv::Point2d(-f.away.y, f.away.x);
+  f.lo_a = f.lo_s = 1e18, f.hi_a = f.hi_s = -1e18;
+  for (const auto& p : b.outer) {
+    const double a = (p - b.centre).dot(f.away) * res, sd = (p - b.centre).dot(f.side) * res;
+    f.lo_a = std::min(f.lo_a, a), f.hi_a = std::max(f.hi_a, a), f.lo_s = std::min(f.lo_s, sd), f.hi_s = std::max(f.hi_s, sd);
+  }
+  return f;
+}
+
+void AddGarden(Rng& r, Scene& s, Placer& P, const Building& b, Style style, std::vector<Building>* minors) {
+  const double res = s.res;
+  const Frame f = FrameOf(s.lay, b, res);
+  auto at = [&](double a_m, double s_m) { return b.centre + (f.away * a_m + f.side * s_m) / res; };
+  // Swimming pool behind the house, with its coping.
+  if (r.B(style == Style::kSuburb ? 0.5 : 0.3)) {
+    const double pw = r.U(3, 5), pd = r.U(5, 10), off = r.U(3, 6);
+    const bool along = r.B(0.5);
+    const double ha = (along ? pd : pw) / 2, hs = (along ? pw : pd) / 2;
+    const cv::Point2d c = at(f.hi_a + off + ha, r.U(f.lo_s + hs, std::max(f.lo_s + hs, f.hi_s - hs)));
+    const auto coping = OrientedRect(c, f.away, f.side, ha + 0.6, hs + 0.6, res);
+    if (TryPlaceFree(P, coping)) {
+      s.patches.push_back({Patch::kCoping, coping, 0});
+      s.patches.push_back({Patch::kWater, OrientedRect(c, f.away, f.side, ha, hs, res), 0});
+    }
+  }
+  // Garden shed in a back corner (a small building, not counted).
+  if (r.B(0.5)) {
+    const double sw = r.U(2, 3.2), sd = r.U(2.2, 4);
+    const double side = r.B(0.5) ? f.hi_s + r.U(-1, 3) : f.lo_s - r.U(-1, 3);
+    const cv::Point2d c = at(f.hi_a + r.U(5, 12), side);
+    Building sh;
+    sh.outer = OrientedRect(c, f.away, f.side, sd / 2, sw / 2, res);
+    sh.centre = c;
+    sh.shape = "rect";
+    sh.eave_m = r.U(2.0, 2.6);
+    if (r.B(0.5)) sh.roof = RoofType::kShed, sh.pitch = std::tan(10 * kPi / 180), sh.short_axis = f.side, sh.half_short_m = sw / 2;
+    PickRoofMaterial(r, sh);
+    if (TryPlaceFree(P, sh.outer)) minors->push_back(sh);
+  }
+  // Hedges on the plot boundary (front one less often), never across roads or buildings.
+  const double back = f.hi_a + r.U(10, 18), front = f.lo_a - r.U(1.5, 3.5);
+  const double left = f.lo_s - r.U(3, 6), right = f.hi_s + r.U(3, 6);
+  const double hw = r.U(0.35, 0.65), hh = r.U(1.2, 2.6);
+  struct Seg { double a0, s0, a1, s1, p; };
+  for (const Seg& g : {Seg{back, left, back, right, 0.6}, Seg{front, left, back, left, 0.6}, Seg{front, right, back, right, 0.6},
+                       Seg{front, left, front, right, 0.3}}) {
+    if (!r.B(g.p)) continue;
+    const cv::Point2d a = at(g.a0, g.s0), e = at(g.a1, g.s1);
+    const cv::Point2d d = e - a;
+    const double len = cv::norm(d);
+    if (len < 1) continue;
+    bool ok = true;
+    for (int k = 0; k <= 8 && ok; ++k) {
+      const cv::Point2d q = a + d * (k / 8.0);
+      const cv::Point2d pix = P.g.ToPix(q);
+      const int x = int(std::lround(pix.x)), y = int(std::lround(pix.y));
+      ok = x >= 0 && y >= 0 && x < P.g.w && y < P.g.h && P.occ(y, x) != 2 && !OnRoad(s.lay.Query(q.x, q.y), s.lay.sidewalk);
+    }
+    if (!ok) continue;
+    const cv::Point2d u = d / len, n(-u.y, u.x);
+    const cv::Point2d nn = n * (hw / res);
+    s.patches.push_back({Patch::kHedge, {a - nn, e - nn, e + nn, a + nn}, hh});
+  }
+}
+
+// A parking lot beside a hall, with rows of stalls and parked cars.
+void AddLot(Rng& r, Scene& s, Placer& P, const Building& b, std::vector<Car>* parked) {
+  const double res = s.res;
+  const Frame f = FrameOf(s.lay, b, res);
+  const double d0 = r.U(18, 36), la = f.hi_a - f.lo_a;
+  const int first = r.B(0.5) ? 1 : -1;
+  for (int attempt = 0; attempt < 4; ++attempt) {  // one side, the other, then both at 60 % depth
+    const double sg = attempt % 2 ? -first : first, d = attempt < 2 ? d0 : std::max(12.0, 0.6 * d0);
+    const double s0 = sg > 0 ? f.hi_s + 3 : f.lo_s - 3 - d;
+    const cv::Point2d origin = b.centre + (f.away * f.lo_a + f.side * s0) / res;
+    Lot lot;
+    lot.origin = origin, lot.u = f.away, lot.v = f.side, lot.w_m = la, lot.d_m = d;
+    lot.poly = {origin, origin + f.away * (la / res), origin + (f.away * la + f.side * d) / res, origin + f.side * (d / res)};
+    if (!TryPlaceFree(P, lot.poly)) continue;
+    s.lots.push_back(lot);
+    const double fill = r.U(0.5, 0.95);
+    for (double v0 = 0; v0 + 5 <= d; v0 += 17.5)
+      for (double v : {v0, v0 + 11.5}) {
+        if (v + 5 > d) continue;
+        for (double u = 0.5; u + 2.5 <= la - 0.5; u += 2.5) {
+          if (!r.B(fill)) continue;
+          const double len = r.U(4.0, 4.9), wid = r.U(1.7, 1.95);
+          const cv::Point2d c = origin + (f.away * (u + 1.25) + f.side * (v + 2.5)) / res;
+          const cv::Point2d fwd = f.side * (r.B(0.5) ? 1.0 : -1.0), acr(-fwd.y, fwd.x);
+          Car car;
+          const cv::Point2d F = fwd * (len / 2 / res), A = acr * (wid / 2 / res);
+          car.poly = {c + F - A, c + F + A, c - F + A, c - F - A};
+          car.colour = r.Pick(std::vector<cv::Vec3b>{{30, 30, 30}, {230, 230, 230}, {160, 160, 165}, {40, 40, 170},
+                                                       {150, 80, 30}, {60, 60, 60}, {200, 200, 205}, {40, 120, 200}});
+          parked->push_back(car);
+        }
+      }
+    break;
+  }
+}
+
+// Conventional (not true) orthophoto: a point h metres up shows h * lean further on.
+// Per output pixel, the ray is marched down from the highest point that can reach it;
+// the first surface it meets is what the photo shows (a roof, or a facade band).
+void ApplyLean(const Scene& s, const Grid& g, const Raster& r, cv::Mat3b& img, cv::Mat1i* ids) {
+  const cv::Point2d L = s.lean_px * g.f;  // ortho px per metre of height
+  const double Ln = cv::norm(L);
+  double hmax = 0;
+  cv::minMaxLoc(r.h, nullptr, &hmax);
+  if (Ln < 1e-9 || hmax <= 0.3) return;
+  const double dt = 0.5 / Ln;  // half a pixel per step
+  const int T = 16, tw = (g.w + T - 1) / T, th = (g.h + T - 1) / T;
+  cv::Mat1f tile(th, tw, 0.f);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) tile(y / T, x / T) = std::max(tile(y / T, x / T), r.h(y, x));
+  // Highest point whose lean can reach each tile.
+  cv::Mat1f reach(th, tw, 0.f);
+  const int steps = int(std::ceil(hmax * Ln / T)) + 1;
+  for (int ty = 0; ty < th; ++ty)
+    for (int tx = 0; tx < tw; ++tx) {
+      float m = 0;
+      for (int k = 0; k <= steps; ++k) {
+        const double t = hmax * k / steps;
+        const int cx = int(std::floor((tx * T + T / 2.0 - t * L.x) / T)), cy = int(std::floor((ty * T + T / 2.0 - t * L.y) / T));
+        for (int yy = cy - 1; yy <= cy + 1; ++yy)
+          for (int xx = cx - 1; xx <= cx + 1; ++xx)
+            if (xx >= 0 && yy >= 0 && xx < tw && yy < th) m = std::max(m, tile(yy, xx));
+      }
+      reach(ty, tx) = m;
+    }
+  const cv::Mat3b src = img.clone();
+  const cv::Mat1i sid = ids->clone();
+  const double wall_tol = std::max(0.6, 1.2 * dt);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) {
+      const double top = reach(y / T, x / T);
+      if (top <= 0.3) continue;
+      bool hit = false;
+      double t = top;
+      int px = x, py = y;
+      for (; t > 0.05; t -= dt) {
+        px = int(std::lround(x - t * L.x)), py = int(std::lround(y - t * L.y));
+        if (px < 0 || py < 0 || px >= g.w || py >= g.h) continue;
+        if (r.h(py, px) >= t) { hit = true; break; }
+      }
+      if (!hit) {  // the ground at this pixel
+        if (r.h(y, x) > 0.3) (*ids)(y, x) = -1, img(y, x) = src(y, x);
+        continue;
+      }
+      const uchar c = r.cls(py, px);
+      const bool wall = r.h(py, px) - t > wall_tol;
+      if (wall && (c == kRoof || c == kRoofBox) && r.id(py, px) >= 0) {
+        const cv::Vec3d w = cv::Vec3d(s.b[size_t(r.id(py, px))].wall) * (std::fmod(t, 3.0) < 1.1 ? 0.62 : 0.85);
+        img(y, x) = cv::Vec3b(Sat(w[0]), Sat(w[1]), Sat(w[2]));
+        (*ids)(y, x) = -1;
+      } else if (wall) {
+        const cv::Vec3b v = src(py, px);
+        img(y, x) = cv::Vec3b(Sat(v[0] * 0.75), Sat(v[1] * 0.75), Sat(v[2] * 0.75));
+        (*ids)(y, x) = -1;
+      } else {
+        img(y, x) = src(py, px);
+        (*ids)(y, x) = (c == kRoof || c == kRoofBox) ? sid(py, px) : -1;
+      }
+    }
+}
+
+Style ParseStyle(const std::string& name) {
+  const auto& all = CityStyles();
+  for (size_t i = 0; i < all.size(); ++i)
+    if (all[i] == name) return Style(i);
+  throw Error(ErrorCode::kInvalidArgument, "city: unknown style '" + name + "'");
+}
+
+}  // namespace
+
 City MakeCity(const CityOptions& o, std::uint64_t seed) {
   o.Check();
-  Rng r(SplitMix(seed) ^ 0x6369747973796e74ull);
+  const Style style = ParseStyle(o.style);
+  const bool styled = style != Style::kClassic;
+  // Each style its own draws for a seed (classic: as it always was).
+  Rng r(SplitMix(seed) ^ 0x6369747973796e74ull ^ (styled ? SplitMix(std::uint64_t(style)) : 0));
   City city;
   city.options = o;
   city.seed = seed;
@@ -862,6 +1309,25 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
   s.lay.res = o.res_m;
   s.lay.spacing[0] = r.U(90, 150), s.lay.spacing[1] = r.U(90, 150);
   s.lay.key = r.Next();
+  s.style = style;
+  if (styled) {  // a second, rotated street grid beyond a line (most towns of the styles have one)
+    if (r.B(style == Style::kDense ? 0.4 : 0.6)) {
+      Layout a = s.lay;
+      a.alpha = std::fmod(s.lay.alpha + r.U(0.25, 0.65) * (r.B(0.5) ? 1 : -1) + kPi, kPi / 2);
+      a.ca = std::cos(a.alpha), a.sa = std::sin(a.alpha);
+      a.spacing[0] = r.U(70, 130), a.spacing[1] = r.U(70, 130);
+      a.key = r.Next();
+      s.lay.alt.push_back(a);
+      const double phi = r.U(0, 2 * kPi);
+      s.lay.split_n = cv::Point2d(std::cos(phi), std::sin(phi));
+      const cv::Point2d c(r.U(0.25, 0.75) * o.width, r.U(0.25, 0.75) * o.height);
+      s.lay.split_d = c.dot(s.lay.split_n);
+    }
+    if (style == Style::kSuburb) s.lay.spacing[0] = r.U(70, 120), s.lay.spacing[1] = r.U(60, 110);
+    const double la = r.U(0, 2 * kPi), lm = r.U(0.05, 0.2);  // lean, metres per metre of height
+    s.lean_px = cv::Point2d(std::cos(la), std::sin(la)) * (lm / o.res_m);
+    city.lean = cv::Point2d(std::cos(la), std::sin(la)) * lm;
+  }
 
   PhotoGeometry pg = MakePhotoGeometry(r, o);
   const std::vector<cv::Point2d> foot = PhotoCorners(pg);
@@ -899,25 +1365,42 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
     return cv::Point2d(r.U(fb.x, fb.x + fb.width), r.U(fb.y, fb.y + fb.height));
   };
   const int n_out = int(std::lround(o.buildings * outside_frac));
+  std::vector<Building> minors;  // sheds (styles)
+  std::vector<Car> parked;       // cars in parking lots (styles)
   for (int zone : {1, 2}) {
     const int want = zone == 1 ? o.buildings : n_out;
     int placed = 0;
     for (int attempt = 0; placed < want && attempt < 400 * std::max(1, want); ++attempt) {
-      Building b = MakeBuilding(r, s, sample_in(zone), o.pitched_roofs);
-      if (attempt > 100 * want) {  // crowded: shrink
-        for (auto* ring : {&b.outer}) for (auto& p : *ring) p = b.centre + (p - b.centre) * 0.6;
-        for (auto& hole : b.holes) for (auto& p : hole) p = b.centre + (p - b.centre) * 0.6;
-        for (auto& bx : b.boxes) for (auto& p : bx.poly) p = b.centre + (p - b.centre) * 0.6;
-        b.half_short_m *= 0.6;
+      std::string kind;
+      Building b = styled ? MakeStyledBuilding(r, s, sample_in(zone), style, o.pitched_roofs, &kind)
+                          : MakeBuilding(r, s, sample_in(zone), o.pitched_roofs);
+      auto shrink = [&b](double k) {
+        for (auto* ring : {&b.outer}) for (auto& p : *ring) p = b.centre + (p - b.centre) * k;
+        for (auto& hole : b.holes) for (auto& p : hole) p = b.centre + (p - b.centre) * k;
+        for (auto& bx : b.boxes) for (auto& p : bx.poly) p = b.centre + (p - b.centre) * k;
+        b.half_short_m *= k;
+      };
+      if (styled) {  // small tiles: no building longer than 40 % of the tile's short side
+        const cv::Rect2d bb = BoundsOf(b.outer);
+        const double cap = 0.4 * std::min(o.width, o.height);
+        if (std::max(bb.width, bb.height) > cap) shrink(cap / std::max(bb.width, bb.height));
       }
-      if (r.B(0.6)) FaceStreet(r, s.lay, b);
+      if (attempt > 100 * want) shrink(0.6);  // crowded: shrink
+      if (styled && attempt > 200 * want) shrink(0.6);
+      if (r.B(kind == "house" ? 0.9 : 0.6)) FaceStreet(r, s.lay, b);
       if (!TryPlace(P, b.outer, zone, gap)) continue;
+      if (kind == "house") AddGarden(r, s, P, b, style, &minors);
+      if (kind == "hall") AddLot(r, s, P, b, &parked);
       s.b.push_back(std::move(b));
       ++placed;
     }
     if (zone == 1) s.counted = placed;
     else city.outside_buildings = placed;
   }
+  s.first_minor = int(s.b.size());
+  city.minor_structures = int(minors.size());
+  city.parking_lots = int(s.lots.size());
+  for (Building& m : minors) s.b.push_back(std::move(m));
   // Trees: clusters, street trees on sidewalks, single trees; never on buildings or roads.
   const int n_trees_out = int(std::lround(o.trees * outside_frac));
   for (int zone : {1, 2}) {
@@ -985,15 +1468,50 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
       if (!clash) s.cars.push_back(car);
     }
   }
+  s.cars.insert(s.cars.end(), parked.begin(), parked.end());
+  // Styles: cars move between the LiDAR and the photo flights. Some are only in the
+  // photo, some only in the LiDAR, some moved along their lane.
+  std::vector<Car> photo_cars = s.cars;
+  if (styled) {
+    std::vector<Car> depth_cars;
+    photo_cars.clear();
+    for (const Car& c : s.cars) {
+      const double u = r.U();
+      if (u < 0.2) {
+        photo_cars.push_back(c);
+      } else if (u < 0.4) {
+        depth_cars.push_back(c);
+      } else if (u < 0.55) {
+        photo_cars.push_back(c);
+        Car m = c;
+        const cv::Point2d fwd = (c.poly[0] + c.poly[1] - c.poly[2] - c.poly[3]) * 0.5;
+        const cv::Point2d d = fwd / std::max(1e-9, cv::norm(fwd)) * (r.U(6, 20) / o.res_m * (r.B(0.5) ? 1 : -1));
+        for (auto& p : m.poly) p += d;
+        depth_cars.push_back(m);
+      } else {
+        photo_cars.push_back(c), depth_cars.push_back(c);
+      }
+    }
+    s.cars = depth_cars;
+  }
 
   // ---- Depth raster.
   const Grid dg{-0.5, -0.5, 1, o.width, o.height};
   const Raster dr = RenderHeights(s, dg, false, true, r.Next());
+  s.cars = photo_cars;
   city.building_id = cv::Mat1i(o.height, o.width, -1);
   city.tree_mask = cv::Mat1b(o.height, o.width, uchar(0));
   cv::RNG nrng(r.Next());
   const cv::Mat1f und = ValueNoise(cv::Size(o.width, o.height), 120 / o.res_m, nrng);
-  const double ang = r.U(0, 2 * kPi), slope = o.ground_slope * r.U(0.2, 1), und_amp = r.U(0.1, 0.5);
+  const double ang = r.U(0, 2 * kPi);
+  double slope = o.ground_slope * r.U(0.2, 1), und_amp = r.U(0.1, 0.5);
+  cv::Mat1f und2;
+  if (styled) {  // hilly: 1.6-4 % slope (default option) and undulations of metres
+    slope = 4 * o.ground_slope * r.U(0.4, 1);
+    und_amp = r.U(0.5, 2.5);
+    und2 = ValueNoise(cv::Size(o.width, o.height), 40 / o.res_m, nrng);
+  }
+  double gmin = 1e18, gmax = -1e18;
   cv::Mat1f noise(o.height, o.width);
   nrng.fill(noise, cv::RNG::NORMAL, 0.f, float(o.depth_noise_m));
   city.depth = cv::Mat1f(o.height, o.width);
@@ -1001,11 +1519,20 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
     for (int x = 0; x < o.width; ++x) {
       const double gz = slope * ((x - o.width / 2.0) * std::cos(ang) + (y - o.height / 2.0) * std::sin(ang)) * o.res_m +
                         und_amp * (und(y, x) - 0.5) * 2;
-      city.depth(y, x) = float(gz + dr.h(y, x) + noise(y, x));
+      const double g2 = und2.empty() ? 0.0 : 0.3 * und_amp * (und2(y, x) - 0.5) * 2;
+      gmin = std::min(gmin, gz + g2), gmax = std::max(gmax, gz + g2);
+      city.depth(y, x) = float(gz + g2 + dr.h(y, x) + noise(y, x));
+      if (styled) {  // no return from water, few from dark roofs
+        if (dr.cls(y, x) == kWater) city.depth(y, x) = std::numeric_limits<float>::quiet_NaN();
+        const int bid = dr.id(y, x);
+        if (bid >= 0 && dr.cls(y, x) == kRoof && s.b[size_t(bid)].nodata > 0 && r.U() < s.b[size_t(bid)].nodata)
+          city.depth(y, x) = std::numeric_limits<float>::quiet_NaN();
+      }
       const int id = dr.id(y, x);
       if (id >= 0 && id < s.counted) city.building_id(y, x) = id;
       if (dr.cls(y, x) == kTree) city.tree_mask(y, x) = 255;
     }
+  if (styled) city.ground_range_m = gmax - gmin;
   // Missing returns in small patches.
   const long target = long(std::llround(o.missing_returns * double(o.width) * o.height));
   long missing = 0;
@@ -1023,7 +1550,8 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
   // ---- Orthophoto over the photo's footprint, then the photo.
   double f = std::clamp(1.0 / pg.scale, 1.0, 3.4);
   f = std::min(f, 3200.0 / std::max(fb.width, fb.height));
-  const Grid og = GridOver(cv::Rect2d(fb.x - 6, fb.y - 6, fb.width + 12, fb.height + 12), f);
+  const double margin = styled ? 6 + 45 * cv::norm(s.lean_px) : 6;  // roofs leaning in from outside
+  const Grid og = GridOver(cv::Rect2d(fb.x - margin, fb.y - margin, fb.width + 2 * margin, fb.height + 2 * margin), f);
   cv::Mat1i oid;
   cv::Mat3b ortho = RenderOrtho(s, og, &oid);
   const double shrink = f * pg.scale;  // ortho pixels per photo pixel
@@ -1037,7 +1565,7 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
   for (int y = 0; y < pid.rows; ++y)
     for (int x = 0; x < pid.cols; ++x) {
       const int id = int(std::lround(pid(y, x)));
-      city.photo_building_id(y, x) = id < 0 ? -1 : id < s.counted ? id : -2;
+      city.photo_building_id(y, x) = id < 0 || id >= s.first_minor ? -1 : id < s.counted ? id : -2;
     }
   city.photo_road_mask = cv::Mat1b(pg.size, uchar(0));
   for (int y = 0; y < pg.size.height; ++y)
@@ -1080,6 +1608,13 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
     city.roofs.push_back(b.roof);
     city.shapes.push_back(b.shape);
     city.roof_colours.push_back(b.colour);
+  }
+  for (const Patch& p : s.patches) {
+    if (p.kind != Patch::kWater) continue;
+    cv::Point2d c(0, 0);
+    for (const auto& q : p.poly) c += q * 0.25;
+    if (c.x >= 0 && c.y >= 0 && c.x <= o.width - 1 && c.y <= o.height - 1)
+      city.pools.emplace_back(std::vector<cv::Point2f>(p.poly.begin(), p.poly.end()));
   }
   return city;
 }
@@ -1170,6 +1705,18 @@ void SaveCity(const City& c, const std::string& dir, const std::string& stem) {
                   {"photo_max_side", o.photo_max_side}, {"min_coverage", o.min_coverage},
                   {"max_coverage", o.max_coverage}, {"overlap", o.overlap}, {"pitched_roofs", o.pitched_roofs},
                   {"photo_blur", o.photo_blur}, {"photo_noise", o.photo_noise}};
+  if (o.style != "classic") {  // classic truth.json stays as it was
+    j["options"]["style"] = o.style;
+    j["style"] = o.style;
+    j["lean_m_per_m"] = {c.lean.x, c.lean.y};
+    j["lean_note"] = "conventional orthophoto: a point h metres above the ground shows h * lean metres away (depth axes)";
+    j["ground_range_m"] = c.ground_range_m;
+    j["minor_structures"] = c.minor_structures;
+    j["parking_lots"] = c.parking_lots;
+    json pl = json::array();
+    for (const auto& p : c.pools) pl.push_back(pts(p));
+    j["pools"] = pl;
+  }
   const std::string jp = path("truth.json");
   std::ofstream out(jp);
   out << j.dump(1) << "\n";

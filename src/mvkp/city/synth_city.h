@@ -18,6 +18,21 @@
 //
 // Everything is reproducible from the seed: std::mt19937_64 with our own
 // uniform/normal sampling, and cv::RNG (OpenCV's own generator) for noise fields.
+//
+// Styles (CityOptions::style, issue 21). "classic" is the generator above, unchanged
+// byte for byte. The others are towns of a different make, for testing on data the
+// registration was not tuned on; all of them add sloped, undulating ground (metres
+// across the tile), cars that moved between the LiDAR and the photo flights, dark
+// roofs with few returns, and a conventional (not true) orthophoto: everything above
+// the ground is displaced in the photo by height x a lean vector, with the facades on
+// one side visible as a band.
+//   suburb: one or two street grids (the second rotated); detached houses with gable,
+//           hip, shed or flat roofs, gardens with hedges (tall in depth, green in the
+//           photo), swimming pools (blue; no return in depth, like water) and sheds.
+//   dense:  apartment bars, L/T/U blocks and courtyards, towers, commercial halls with
+//           parking lots full of cars, flat roofs with equipment.
+//   civic:  round buildings with domed roofs and star-shaped buildings among suburb
+//           and dense buildings.
 #pragma once
 
 #include <cstdint>
@@ -48,12 +63,16 @@ struct CityOptions {
   bool pitched_roofs = true;        // gable/hip roofs on small buildings
   double photo_blur = 0.8;          // max sensor blur sigma (photo pixels)
   double photo_noise = 4.0;         // max sensor noise sigma (grey levels)
+  std::string style = "classic";    // classic | suburb | dense | civic (see above)
   // Throws mvkp::Error(kInvalidArgument) naming the first bad option.
   void Check() const;
 };
 
-enum class RoofType { kFlat = 0, kGable = 1, kHip = 2 };
-const char* RoofTypeName(RoofType r);  // "flat", "gable", "hip"
+enum class RoofType { kFlat = 0, kGable = 1, kHip = 2, kShed = 3, kDome = 4 };
+const char* RoofTypeName(RoofType r);  // "flat", "gable", "hip", "shed", "dome"
+
+// The styles CityOptions::style accepts, in order.
+const std::vector<std::string>& CityStyles();
 
 struct City {
   cv::Mat1f depth;                 // DSM in metres (ground ~0, mild slope); NaN = no return
@@ -66,6 +85,7 @@ struct City {
   std::vector<double> heights_m;                             // eave height above ground
   std::vector<RoofType> roofs;
   std::vector<std::string> shapes;                           // "rect", "L", "T", "U", "courtyard", "irregular"
+                                                             // (+ "round", "star" in the civic style)
   std::vector<cv::Vec3b> roof_colours;                       // base roof colour in the photo (BGR)
   cv::Mat1i building_id;           // per depth pixel: building index or -1
   cv::Mat1i photo_building_id;     // per photo pixel: building index, -1 none, -2 a building outside the depth raster
@@ -79,6 +99,12 @@ struct City {
   double photo_overlap = 0;        // fraction of the photo that shows the depth raster's ground
   double depth_overlap = 0;        // fraction of the depth raster the photo shows
   int outside_buildings = 0;       // buildings drawn in the photo outside the depth raster
+  // Styles other than classic (zero / empty for classic):
+  cv::Point2d lean{0, 0};          // photo displacement of a point h metres up: h * lean metres (depth axes)
+  std::vector<std::vector<cv::Point2f>> pools;  // swimming pools inside the depth raster (NaN in depth), depth px
+  int minor_structures = 0;        // sheds: small buildings not counted in footprints
+  int parking_lots = 0;            // parking lots (dense and civic halls)
+  double ground_range_m = 0;       // max - min of the terrain over the depth raster (metres)
   CityOptions options;
   std::uint64_t seed = 0;
 };

@@ -324,5 +324,217 @@ TEST(City, BadOptionsAreRejected) {
   EXPECT_THROW(o.Check(), Error);
 }
 
+// ---------------------------------------------------------------------------
+// Styles (issue 21).
+
+std::uint64_t Fnv(const void* data, size_t n, std::uint64_t h = 0xcbf29ce484222325ull) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
+}
+std::uint64_t FnvMat(const cv::Mat& m, std::uint64_t h = 0xcbf29ce484222325ull) {
+  for (int y = 0; y < m.rows; ++y) h = Fnv(m.ptr(y), m.cols * m.elemSize(), h);
+  return h;
+}
+
+// The classic generator must not change: the expected values were computed from the
+// files that `mvkp synth-city -o small --n 4 --seed 5 --width 200 --height 200
+// --buildings 4` wrote (scene 1) with the binary built before the styles were added.
+TEST(CityStyles, ClassicIsUnchanged) {
+  CityOptions o;
+  o.width = o.height = 200;
+  o.buildings = 4;
+  const City c = MakeCity(o, 5 * 1000003ull + 1);
+  ASSERT_EQ(c.depth.size(), cv::Size(200, 200));
+  ASSERT_EQ(c.photo.size(), cv::Size(448, 446));
+  EXPECT_EQ(FnvMat(c.depth), 0x6cc44ebbcb3f75e2ull) << "depth";
+  EXPECT_EQ(FnvMat(c.photo), 0x25c5d2b801af5df1ull) << "photo";
+  EXPECT_EQ(FnvMat(c.building_id), 0x455527b49d139e9eull) << "building ids";
+  std::uint64_t g = Fnv(c.corners.data(), c.corners.size() * sizeof(cv::Point2f));
+  g = Fnv(c.photo_to_depth.val, sizeof c.photo_to_depth.val, g);
+  EXPECT_EQ(g, 0x1a169a931f1fd781ull) << "corners and H";
+  EXPECT_EQ(c.lean, cv::Point2d(0, 0));
+  EXPECT_TRUE(c.pools.empty());
+}
+
+CityOptions Styled(const std::string& style, int size = 400, int buildings = 10) {
+  CityOptions o;
+  o.style = style;
+  o.width = o.height = size;
+  o.buildings = buildings;
+  o.trees = std::max(4, size * size * 60 / 1000000);
+  o.photo_max_side = 1200;
+  return o;
+}
+
+TEST(CityStyles, SameSeedSameSceneAndStylesDiffer) {
+  for (const std::string st : {"suburb", "dense", "civic"}) {
+    const City a = MakeCity(Styled(st), 4), b = MakeCity(Styled(st), 4);
+    EXPECT_TRUE(SameBits(a.depth, b.depth)) << st;
+    EXPECT_TRUE(SameBits(a.photo, b.photo)) << st;
+    EXPECT_EQ(a.corners, b.corners) << st;
+    EXPECT_EQ(a.photo_to_depth, b.photo_to_depth) << st;
+    const City k = MakeCity(Styled("classic"), 4);
+    EXPECT_NE(a.photo_to_depth, k.photo_to_depth) << st;
+  }
+  EXPECT_NE(MakeCity(Styled("suburb"), 4).corners, MakeCity(Styled("dense"), 4).corners);
+}
+
+TEST(CityStyles, UnknownStyleIsRejected) {
+  CityOptions o;
+  o.style = "gothic";
+  EXPECT_THROW(o.Check(), Error);
+  EXPECT_THROW(MakeCity(o, 1), Error);
+  for (const auto& st : CityStyles()) {
+    o.style = st;
+    EXPECT_NO_THROW(o.Check()) << st;
+  }
+}
+
+// Small tiles (100 m at 0.5 m, like the real one) get the buildings they ask for.
+TEST(CityStyles, SmallTilesHaveTheirBuildings) {
+  for (const auto& st : CityStyles())
+    for (int n : {3, 4, 6})
+      for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+        const City c = MakeCity(Styled(st, 200, n), seed);
+        ASSERT_EQ(c.footprints.size(), size_t(n)) << st << " seed " << seed;
+        for (int i = 0; i < n; ++i) EXPECT_GT(cv::countNonZero(c.building_id == i), 20) << st << " building " << i;
+        EXPECT_GE(c.photo.cols, 32);
+      }
+}
+
+// Pools have no LiDAR return (like water) and are blue in the photo.
+TEST(CityStyles, SuburbPoolsAreNoDataInDepthAndBlueInThePhoto) {
+  int pools = 0, seen = 0, blue = 0;
+  std::set<RoofType> roofs;
+  int sheds = 0;
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    const City c = MakeCity(Styled("suburb", 500, 16), seed);
+    roofs.insert(c.roofs.begin(), c.roofs.end());
+    sheds += c.minor_structures;
+    const cv::Matx33d Hi = c.photo_to_depth.inv();
+    for (const auto& pool : c.pools) {
+      cv::Mat1b m(c.depth.size(), uchar(0));
+      std::vector<std::vector<cv::Point>> poly(1);
+      for (const auto& p : pool) poly[0].emplace_back(int(std::lround(p.x)), int(std::lround(p.y)));
+      cv::fillPoly(m, poly, cv::Scalar(255));
+      cv::erode(m, m, cv::Mat());
+      const int n = cv::countNonZero(m);
+      if (n < 10) continue;
+      ++pools;
+      EXPECT_GT(cv::countNonZero(m & ~(c.depth == c.depth)), n * 9 / 10) << "a pool has LiDAR returns, seed " << seed;
+      cv::Point2f ctr(0, 0);
+      for (const auto& p : pool) ctr += p * 0.25f;
+      const cv::Point2d q = Apply(Hi, cv::Point2d(ctr));
+      if (q.x < 3 || q.y < 3 || q.x >= c.photo.cols - 3 || q.y >= c.photo.rows - 3) continue;
+      ++seen;
+      const cv::Vec3b v = c.photo(int(std::lround(q.y)), int(std::lround(q.x)));  // BGR
+      blue += v[0] > v[2] + 50 && v[0] > v[1];
+    }
+  }
+  ASSERT_GE(pools, 5);
+  ASSERT_GE(seen, 3);
+  EXPECT_GE(blue, seen * 8 / 10);
+  EXPECT_GT(sheds, 3);
+  for (RoofType r : {RoofType::kGable, RoofType::kHip, RoofType::kShed}) EXPECT_TRUE(roofs.count(r)) << RoofTypeName(r);
+}
+
+// Ground of the styles is hilly: the terrain spans metres over a 100 m tile.
+TEST(CityStyles, GroundIsNotFlat) {
+  for (const std::string st : {"suburb", "dense", "civic"})
+    for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+      const City c = MakeCity(Styled(st, 200, 4), seed);
+      EXPECT_GT(c.ground_range_m, 1.0) << st << " seed " << seed;
+      cv::Mat1b ground = (c.building_id < 0) & (c.tree_mask == 0) & (c.depth == c.depth);
+      std::vector<float> g;
+      for (int y = 0; y < c.depth.rows; y += 2)
+        for (int x = 0; x < c.depth.cols; x += 2)
+          if (ground(y, x)) g.push_back(c.depth(y, x));
+      std::sort(g.begin(), g.end());
+      ASSERT_GT(g.size(), 1000u);
+      const double range = g[g.size() * 95 / 100] - g[g.size() * 5 / 100];
+      EXPECT_GT(range, 1.0) << st << " seed " << seed;
+    }
+}
+
+// A conventional orthophoto: a roof h metres up shows h * lean metres away from its
+// footprint, measured on the roof pixels of the photo mapped into the depth raster.
+TEST(CityStyles, LeanMovesRoofsByHeightTimesLean) {
+  int n = 0;
+  double err = 0, moved = 0;
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    CityOptions o = Styled("dense", 500, 12);
+    o.max_perspective = 0;
+    const City c = MakeCity(o, seed);
+    ASSERT_GT(cv::norm(c.lean), 0.04);
+    for (int i = 0; i < int(c.footprints.size()); ++i) {
+      if (c.roofs[size_t(i)] != RoofType::kFlat) continue;
+      const cv::Mat1b foot = c.building_id == i;
+      const int area = cv::countNonZero(foot);
+      // Photo pixels of the roof, in depth coordinates.
+      cv::Point2d sum(0, 0);
+      int k = 0;
+      for (int y = 0; y < c.photo.rows; ++y)
+        for (int x = 0; x < c.photo.cols; ++x)
+          if (c.photo_building_id(y, x) == i) sum += Apply(c.photo_to_depth, cv::Point2d(x, y)), ++k;
+      const double px_area = c.scale * c.scale;  // depth px per photo px
+      if (k * px_area < 0.9 * area) continue;  // hidden or cut by the photo's border
+      const cv::Moments m = cv::moments(foot, true);
+      const cv::Point2d foot_c(m.m10 / m.m00, m.m01 / m.m00);
+      const cv::Point2d shift = sum / k - foot_c;
+      const cv::Point2d want = c.lean * (c.heights_m[size_t(i)] / o.res_m);
+      err += cv::norm(shift - want);
+      moved += cv::norm(want);
+      ++n;
+    }
+  }
+  ASSERT_GE(n, 15);
+  EXPECT_GT(moved / n, 2.0);         // the lean is visible: a few depth px on average
+  EXPECT_LT(err / n, 1.0) << "mean |shift - height * lean| in depth px, over " << n << " roofs";
+}
+
+TEST(CityStyles, CivicHasRoundDomesAndStars) {
+  int round = 0, stars = 0, domes = 0;
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    const City c = MakeCity(Styled("civic", 500, 16), seed);
+    for (int i = 0; i < int(c.footprints.size()); ++i) {
+      domes += c.roofs[size_t(i)] == RoofType::kDome;
+      std::vector<std::vector<cv::Point>> cs;
+      cv::findContours(cv::Mat1b(c.building_id == i), cs, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+      ASSERT_EQ(cs.size(), 1u);
+      const double a = cv::contourArea(cs[0]), p = cv::arcLength(cs[0], true);
+      const double circ = 4 * CV_PI * a / (p * p);
+      if (c.shapes[size_t(i)] == "round") {
+        ++round;
+        EXPECT_GT(circ, 0.75) << "seed " << seed << " building " << i;  // 8-connected outlines run long
+        cv::Point2f ctr;
+        float rad;
+        cv::minEnclosingCircle(cs[0], ctr, rad);
+        EXPECT_GT(a, 0.85 * CV_PI * rad * rad);
+      } else if (c.shapes[size_t(i)] == "star") {
+        ++stars;
+        EXPECT_LT(circ, 0.6);
+      }
+    }
+  }
+  EXPECT_GE(round, 3);
+  EXPECT_GE(stars, 2);
+  EXPECT_GE(domes, 2);
+}
+
+TEST(CityStyles, DenseHasParkingLotsAndDarkRoofsWithoutReturns) {
+  int lots = 0, dark = 0;
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    const City c = MakeCity(Styled("dense", 600, 16), seed);
+    lots += c.parking_lots;
+    for (int i = 0; i < int(c.footprints.size()); ++i) {
+      const cv::Mat1b m = c.building_id == i;
+      dark += cv::countNonZero(m & ~(c.depth == c.depth)) > cv::countNonZero(m) / 3;
+    }
+  }
+  EXPECT_GE(lots, 2);
+  EXPECT_GE(dark, 2);
+}
+
 }  // namespace
 }  // namespace mvkp
