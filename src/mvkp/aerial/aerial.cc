@@ -68,7 +68,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   out.segment_photo_ms = photo_ms + tp.ElapsedMs();
 
   std::optional<EdgeEvidence> evidence;
-  if (!grey.empty()) evidence.emplace(grey, f, out.depth_regions, o.edge);
+  if (o.image_check && !grey.empty()) evidence.emplace(grey, f, out.depth_regions, o.edge);
   if (regions) {
     out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,
                                         evidence ? &*evidence : nullptr);
@@ -79,6 +79,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
       return out;
     }
   }
+  if (o.method == Method::kAuto && int(out.depth_regions.size()) > o.auto_outline_max_regions) return out;
   // The outline search: no photo segmentation, the depth outlines against
   // the photo's oriented edges (outline_search.h).
   Timer ts;

@@ -30,6 +30,9 @@ struct AerialOptions {
   // only. kOutlines: the outline search (outline_search.h) only. kAuto: the
   // regions first; the outline search when they find no registration.
   enum class Method { kAuto, kRegions, kOutlines } method = Method::kAuto;
+  int auto_outline_max_regions = 12;  // kAuto runs the outline search only on depths with at most this
+                                      //   many building regions: on larger tiles it added no success in
+                                      //   our measurements and cost 2.5 s and 40-90 MB (docs/aerial.md)
   OutlineSearchOptions outline;
   // Ground size of a pixel, metres (0: unknown). When both are known the
   // outline search looks only near their ratio of scales.

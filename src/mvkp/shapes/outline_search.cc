@@ -412,9 +412,12 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     // field px <= ~1.5 depth px, never finer than the photo
     const int level = std::clamp(int(std::floor(std::log2(1.5 * ps / s))), 0, int(pyramid.size()) - 1);
     const double px = std::pow(2.0, level) * s / ps;  // depth px per field px
-    const int blur10 = wide ? std::max(10, int(std::lround(10 * 0.5 * cell / px))) : 10;
+    // the wide blur in powers of 2 (few distinct fields), and at most 3 kept:
+    // each is a full-size photo field
+    const int blur10 = wide ? 10 << std::clamp(int(std::lround(std::log2(std::max(1.0, 0.5 * cell / px)))), 0, 4) : 10;
     auto it = fields.find({level, blur10});
     if (it == fields.end()) {
+      if (fields.size() >= 3) fields.clear();
       Field f;
       f.k = std::pow(0.5, level);
       cv::GaussianBlur(pyramid[size_t(level)].P, f.P, cv::Size(), blur10 / 10.0);

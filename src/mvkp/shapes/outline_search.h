@@ -33,9 +33,11 @@
 //     the best refined pose that is clearly different (its outlines > 10
 //     depth px away on average: a null from the same search, which accounts
 //     for how many poses were tried), and the outlines must lie on edges.
-//     confidence = clamp((z1 - z2) / z1 ... see ConfidenceOf in the .cc) in
-//     [0, 1]; accepted when confidence >= min_confidence (0.5) and the
-//     EdgeEvidence contrast >= its threshold.
+//     confidence = clamp(2 (z1 - z2) / z1, 0, 1) with z1, z2 those two
+//     refined scores; accepted when confidence >= min_confidence (0.5, i.e.
+//     the runner-up scores at most 3/4 of the best), at least min_outlines
+//     (3) outlines are in view, and with an EdgeEvidence its contrast passes
+//     (1.8) with at least half of the outlines in view on edges.
 #pragma once
 
 #include <string>
