@@ -79,6 +79,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
       return out;
     }
   }
+  if (o.method == Method::kRegions) return out;
   if (o.method == Method::kAuto && int(out.depth_regions.size()) > o.auto_outline_max_regions) return out;
   // The outline search: no photo segmentation, the depth outlines against
   // the photo's oriented edges (outline_search.h).

@@ -68,6 +68,11 @@ TEST(Aerial, OutlineSearchRegistersSmallTiles) {
     EXPECT_TRUE(r.photo_regions.empty());  // no photo segmentation in this mode
     EXPECT_GE(r.confidence, OutlineSearchOptions{}.min_confidence);
     EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << "seed " << seed;
+    AerialOptions only_regions;
+    only_regions.method = AerialOptions::Method::kRegions;
+    const AerialRegistration g = RegisterAerial(c.depth, c.photo, only_regions);
+    EXPECT_FALSE(g.outline_search_ran);
+    EXPECT_TRUE(!g.registration.ok || g.method == "regions");
     const AerialRegistration a = RegisterAerial(c.depth, c.photo);
     if (a.registration.ok) {
       EXPECT_TRUE(a.method == "regions" || a.method == "outlines");

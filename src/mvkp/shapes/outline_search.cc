@@ -489,10 +489,11 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     refined.push_back(refine(T, c.s, 0.5 * cell));
   }
   std::sort(refined.begin(), refined.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
-  Pose best = refined[0];
+  const size_t bi = 0;
+  Pose best = refined[bi];
   double runner = 0;
-  for (size_t i = 1; i < refined.size(); ++i)
-    if (PoseDistance(best.T, refined[i].T, probe) > o.distinct_px) { runner = std::max(runner, refined[i].z); break; }
+  for (size_t i = 0; i < refined.size(); ++i)
+    if (i != bi && PoseDistance(best.T, refined[i].T, probe) > o.distinct_px) runner = std::max(runner, refined[i].z);
 
   // final refinement on the image check, which also gives its verdict
   std::string model = "similarity";

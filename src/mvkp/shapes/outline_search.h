@@ -16,7 +16,7 @@
 //     best `rotation_peaks` offsets, each +- rotation_window_deg, x 4
 //     quadrants, are the rotations searched (all 360 degrees when the
 //     histograms have no clear peak: round or irregular buildings).
-//  2. Coarse search: the depth is seen in cells of c depth px (c: a third of
+//  2. Coarse search: the depth is seen in cells of c depth px (c: a fifth of
 //     the median building side, at least the outline extent / 48). For each
 //     scale hypothesis (log steps; the range narrowed to the ratio of ground
 //     resolutions when both are known) the photo is resampled to cells and
@@ -36,7 +36,7 @@
 //     confidence = clamp(2 (z1 - z2) / z1, 0, 1) with z1, z2 those two
 //     refined scores; accepted when confidence >= min_confidence (0.5, i.e.
 //     the runner-up scores at most 3/4 of the best), at least min_outlines
-//     (3) outlines are in view, and with an EdgeEvidence its contrast passes
+//     (2) outlines are in view, and with an EdgeEvidence its contrast passes
 //     (1.8) with at least half of the outlines in view on edges.
 #pragma once
 
@@ -68,8 +68,10 @@ struct OutlineSearchOptions {
   double distinct_px = 10;          // poses whose outlines differ by more than this (mean, depth px)
                                     //   are different answers
   double min_confidence = 0.5;      // accepted at confidence >= this ...
-  int min_outlines = 3;             // ... with this many outlines in view (and, with evidence, the image
-                                    //   check passed and at least half of the outlines in view on edges)
+  int min_outlines = 2;             // ... with this many outlines in view (1 is not enough: a lone
+                                    //   outline sits on any similar rectangle of other ground), and, with
+                                    //   evidence, the image check passed with at least half of the outlines
+                                    //   in view on edges
   bool perspective = true;          // final EdgeEvidence refinement includes the homography
   void Check() const;               // throws Error(kInvalidArgument)
 };
