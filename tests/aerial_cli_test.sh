@@ -72,6 +72,30 @@ check "... with no registration (homography null, a reason)" "$PY" -c "
 import json; j = json.loads(open('$T/out').read())
 assert j['ok'] is False and j['homography'] is None and j['reason'].startswith('no registration found'), j['reason']"
 
+# Issue 21: the second method on a small tile with 4 buildings (seed 1, scene 6
+# of synth-city --buildings 4 --width 200 --height 200), and which method answered.
+expect_ok "synth-city: small tiles" "$MVKP" synth-city -o "$T/s" --n 7 --seed 1 --buildings 4 --width 200 --height 200
+expect_ok "register --method outlines: exit 0" "$MVKP" register "$T/s/city_0006/depth.tif" "$T/s/city_0006/photo.png" \
+  --json --method outlines
+check "... registered by the outline search within 5 px, with a confidence" "$PY" -c "
+import json, numpy as np
+j = json.load(open('$T/out')); t = json.load(open('$T/s/city_0006/truth.json'))
+assert j['ok'] and j['registration_method'] == 'outlines' and 0.5 <= j['confidence'] <= 1, j['reason']
+assert j['method'] == 'mvkp-register' and j['outline_search']['ok'] and j['time_ms']['outline_search'] > 0
+H, Ht = np.array(j['homography']), np.array(t['photo_to_depth'])
+c = np.array(t['corners'], float).reshape(-1, 2); p = np.c_[c, np.ones(len(c))] @ np.linalg.inv(Ht).T; p = p / p[:, 2:]
+w, h = t['photo_size']; v = (p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)
+q = p[v] @ H.T; e = np.linalg.norm(q[:, :2] / q[:, 2:] - c[v], axis=1).mean(); assert e <= 5, e"
+run "$MVKP" register "$T/s/city_0006/depth.tif" "$T/s/city_0006/photo.png" --json --method regions
+check "register --method regions: no outline search" "$PY" -c "
+import json; j = json.load(open('$T/out')); assert j['outline_search'] is None
+assert j['registration_method'] in (None, 'regions') and (j['ok'] or j['confidence'] == 0)"
+expect_ok "register other ground --method outlines: exit 0" "$MVKP" register "$T/n/city_0000/depth.tif" \
+  "$T/n/city_0000/photo.png" --json --method outlines
+check "... no registration, confidence 0" "$PY" -c "
+import json; j = json.load(open('$T/out'))
+assert not j['ok'] and j['registration_method'] is None and j['confidence'] == 0 and j['outline_search'] is not None"
+
 expect_ok "segment depth --json" "$MVKP" segment depth "$T/c/city_0000/depth.tif" --json --draw "$T/segd.png"
 check "segment depth: most of the 30 buildings" "$PY" -c "
 import json; n = len(json.loads(open('$T/out').read())['regions']); assert 24 <= n <= 40, n"

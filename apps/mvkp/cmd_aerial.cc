@@ -134,7 +134,8 @@ int RunSegment(const SegmentArgs& a) {
 // ---------------------------------------------------------------- register
 
 struct RegisterArgs {
-  std::string depth, optical, draw, model = "auto", fbm, lda;
+  std::string depth, optical, draw, model = "auto", fbm, lda, method = "auto";
+  double min_confidence = OutlineSearchOptions{}.min_confidence;
   bool json = false;
   double res_m = 0;
   int photo_max_side = 1200;
@@ -198,6 +199,12 @@ int RunRegister(RegisterArgs& a) {
     ao.image_check = a.edge.min_contrast > 0;
     if (!ao.image_check) ao.edge.min_contrast = EdgeEvidenceOptions{}.min_contrast;
     LoadOrthoModels(a.fbm, a.lda, ao.optical);
+    ao.method = a.method == "regions"    ? AerialOptions::Method::kRegions
+                : a.method == "outlines" ? AerialOptions::Method::kOutlines
+                                         : AerialOptions::Method::kAuto;
+    ao.outline.min_confidence = a.min_confidence;
+    ao.photo_res_m = img.res_m;
+    ao.depth_res_m = d.res_m;
     const cv::Size photo_size = img.bgr.size(), depth_size = d.z.size();
     // Without a drawing, the pixels are not needed after the pipeline used them.
     const bool keep = !a.draw.empty();
@@ -214,6 +221,21 @@ int RunRegister(RegisterArgs& a) {
     out["ok"] = reg.ok;
     out["reason"] = reg.reason;
     out["model"] = reg.ok ? Json(reg.model) : Json(nullptr);
+    // which method answered ("method" is the tool's name in the correspondence JSON)
+    out["registration_method"] = reg.ok ? Json(ar.method) : Json(nullptr);
+    out["confidence"] = reg.ok ? ar.confidence : 0.0;
+    if (ar.outline_search_ran) {
+      const OutlineSearchResult& os = ar.outline;
+      out["outline_search"] = {{"ok", os.ok},           {"confidence", os.confidence}, {"score", os.score},
+                               {"runner_up", os.runner_up}, {"coverage", os.coverage},   {"poses", os.poses},
+                               {"edge_contrast", os.edge.enough ? Json(os.edge.contrast) : Json(nullptr)},
+                               {"time_ms", os.ms},      {"reason", os.reason}};
+      Json h = Json::array();  // its best pose, accepted or not (for analysis)
+      for (int r = 0; r < 3; ++r) h.push_back({os.photo_to_depth(r, 0), os.photo_to_depth(r, 1), os.photo_to_depth(r, 2)});
+      out["outline_search"]["best_pose"] = h;
+    } else {
+      out["outline_search"] = nullptr;
+    }
     if (reg.ok) {
       Json h = Json::array();
       for (int r = 0; r < 3; ++r) h.push_back({reg.photo_to_depth(r, 0), reg.photo_to_depth(r, 1), reg.photo_to_depth(r, 2)});
@@ -241,6 +263,7 @@ int RunRegister(RegisterArgs& a) {
     out["photo"] = {{"size", {photo_size.width, photo_size.height}}};
     out["time_ms"] = {{"read", read_ms},          {"segment_depth", depth_ms}, {"segment_photo", photo_ms},
                       {"match", reg.match_ms},    {"propagate", reg.propagate_ms},
+                      {"outline_search", ar.outline_search_ms},
                       {"query", total_ms - read_ms}, {"total", total_ms}};
     out["peak_rss_mb"] = PeakRssMb();
     // What the registration itself needed: the peak over the resident size at
@@ -250,8 +273,8 @@ int RunRegister(RegisterArgs& a) {
     if (a.json) {
       std::cout << out.dump() << std::endl;
     } else if (reg.ok) {
-      std::printf("registered (%s): %zu region pairs, RMS %.2f px, %.0f ms\n", reg.model.c_str(), reg.region_matches.size(),
-                  reg.rms_px, total_ms);
+      std::printf("registered by %s (%s, confidence %.2f): %zu region pairs, RMS %.2f px, %.0f ms\n", ar.method.c_str(),
+                  reg.model.c_str(), ar.confidence, reg.region_matches.size(), reg.rms_px, total_ms);
     } else {
       std::printf("%s (%zu photo / %zu depth regions, %.0f ms)\n", reg.reason.c_str(), pcont.size(), dcont.size(),
                   total_ms);
@@ -289,6 +312,14 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_option("--model", a->model, "global transform: auto | similarity | affine | perspective")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "similarity", "affine", "perspective"}));
+  c->add_option("--method", a->method,
+                 "regions (shape contexts), outlines (global search of the depth outlines over the photo edges), "
+                 "or auto (regions, then outlines when they find nothing)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "regions", "outlines"}));
+  c->add_option("--min-confidence", a->min_confidence, "outline search: confidence needed to accept")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   c->add_flag("--principal-directions", a->opt.use_principal_directions,
               "try rotations from the scenes' principal directions first (thesis 7.2.4; falls back)");
   c->add_option("--seed", a->opt.seed, "hypothesis order seed")->capture_default_str();

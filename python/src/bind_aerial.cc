@@ -77,6 +77,8 @@ struct PyRegistration {
   Registration reg;
   std::vector<Contour> photo_regions, depth_regions;
   py::dict time_ms;
+  std::string method;       // register_aerial: "regions" | "outlines" ("" when not registered)
+  double confidence = 0;    // register_aerial: [0, 1] of the answer
 };
 
 }  // namespace
@@ -230,6 +232,10 @@ void BindAerial(py::module_& m) {
         return l;
       }, "Depth region contours used (depth px).")
       .def_readonly("time_ms", &PyRegistration::time_ms)
+      .def_property_readonly("method", [](const PyRegistration& r) -> py::object {
+        return r.reg.ok && !r.method.empty() ? py::object(py::str(r.method)) : py::object(py::none());
+      }, "register_aerial: which method answered, 'regions' or 'outlines' (None when not registered)")
+      .def_readonly("confidence", &PyRegistration::confidence, "register_aerial: confidence of the answer in [0, 1] (0 when not registered)")
       .def("__bool__", [](const PyRegistration& r) { return r.reg.ok; })
       .def("__repr__", [](const PyRegistration& r) {
         if (!r.reg.ok) return "Registration(ok=False, reason='" + r.reg.reason + "')";
@@ -282,7 +288,10 @@ void BindAerial(py::module_& m) {
   m.def(
       "register_aerial",
       [](py::handle depth, py::handle photo, int photo_max_side, py::handle depth_options, py::handle optical_options,
-         py::handle edge_options, py::handle options, py::kwargs kw) {
+         py::handle edge_options, py::handle options, const std::string& method, double photo_res_m, double depth_res_m,
+         py::kwargs kw) {
+        if (method != "auto" && method != "regions" && method != "outlines")
+          throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
         ro.Check();
         const DepthSegmentOptions dso = MakeOptions<DepthSegmentOptions>(depth_options, py::dict(), "register_aerial");
@@ -293,7 +302,7 @@ void BindAerial(py::module_& m) {
         ImageArg z = ToFloatImage(depth, "depth");
         ImageArg img = ToImage(photo, "photo", ImageKind::kBgr);
         auto out = std::make_shared<PyRegistration>();
-        double depth_ms = 0, photo_ms = 0, total_ms = 0;
+        double depth_ms = 0, photo_ms = 0, total_ms = 0, outline_ms = 0;
         {
           py::gil_scoped_release release;
           Timer total;
@@ -303,29 +312,40 @@ void BindAerial(py::module_& m) {
           ao.optical = oso;
           ao.edge = eo;
           ao.registration = ro;
+          ao.method = method == "regions" ? AerialOptions::Method::kRegions
+                      : method == "outlines" ? AerialOptions::Method::kOutlines : AerialOptions::Method::kAuto;
+          ao.photo_res_m = photo_res_m;
+          ao.depth_res_m = depth_res_m;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
           out->depth_regions = std::move(ar.depth_regions);
           depth_ms = ar.segment_depth_ms;
           photo_ms = ar.segment_photo_ms;
+          out->method = ar.method;
+          out->confidence = out->reg.ok ? ar.confidence : 0.0;
+          outline_ms = ar.outline_search_ms;
           total_ms = total.ElapsedMs();
         }
         out->time_ms["segment_depth"] = depth_ms;
         out->time_ms["segment_photo"] = photo_ms;
         out->time_ms["match"] = out->reg.match_ms;
         out->time_ms["propagate"] = out->reg.propagate_ms;
+        out->time_ms["outline_search"] = outline_ms;
         out->time_ms["total"] = total_ms;
         return out;
       },
       py::arg("depth"), py::arg("photo"), py::kw_only(), py::arg("photo_max_side") = 1200,
       py::arg("depth_options") = py::none(), py::arg("optical_options") = py::none(), py::arg("edge_options") = py::none(),
-      py::arg("options") = py::none(),
+      py::arg("options") = py::none(), py::arg("method") = "auto", py::arg("photo_res_m") = 0.0,
+      py::arg("depth_res_m") = 0.0,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
       "(model='auto', min_regions=4, seed=1, ...); depth_options / optical_options are DepthSegmentOptions / "
-      "OpticalSegmentOptions.");
+      "OpticalSegmentOptions. method: 'auto' (regions, then the outline search when they find nothing), "
+      "'regions' or 'outlines'; photo_res_m / depth_res_m (metres per pixel, 0 unknown) narrow the outline "
+      "search's scales. The result's method and confidence say which method answered and how surely.");
 
   m.def(
       "read_depth",

@@ -40,6 +40,22 @@ def test_segment_and_register(city):
         assert r2.homography is None and r2.reason.startswith("no registration found")
 
 
+def test_register_aerial_method_and_confidence():
+    # issue 21: a small tile with 4 buildings (synth-city --buildings 4 --width 200 --height 200 --seed 1,
+    # scene 6), which the outline search registers; the answer says which method gave it
+    c = mvkp.make_city(1000009, width=200, height=200, buildings=4)
+    r = mvkp.register_aerial(c.depth, c.photo, method="outlines")
+    assert r.ok, r.reason
+    assert r.method == "outlines" and 0.5 <= r.confidence <= 1.0
+    h, w = c.photo.shape[:2]
+    assert mvkp.mean_corner_error(r.homography, c.photo_to_depth, w, h) < 5.0
+    assert r.time_ms["outline_search"] > 0
+    r2 = mvkp.register_aerial(c.depth, c.photo, method="regions")
+    assert r2.method in (None, "regions") and (r2.ok or r2.confidence == 0.0)
+    with pytest.raises(ValueError, match="method"):
+        mvkp.register_aerial(c.depth, c.photo, method="fourier")
+
+
 def test_aerial_bad_input(city):
     with pytest.raises(ValueError, match="float32"):
         mvkp.segment_depth(city.photo)

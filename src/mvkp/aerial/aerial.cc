@@ -17,6 +17,9 @@ void AerialOptions::Check() const {
   optical.Check();
   edge.Check();
   registration.Check();
+  outline.Check();
+  Require(photo_res_m >= 0 && depth_res_m >= 0, ErrorCode::kInvalidArgument,
+          "AerialOptions: photo_res_m and depth_res_m must be >= 0");
 }
 
 AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOptions& o) {
@@ -35,8 +38,10 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     cv::resize(photo, small, cv::Size(), f, f, cv::INTER_AREA);
     photo = std::move(small);  // the full-size pixels go unless the caller keeps them
   }
+  using Method = AerialOptions::Method;
+  const bool regions = o.method != Method::kOutlines;
   cv::Mat grey;
-  if (o.image_check) {
+  if (o.image_check || o.method != Method::kRegions) {
     if (photo.channels() == 3) cv::cvtColor(photo, grey, cv::COLOR_BGR2GRAY);
     else grey = photo;
   }
@@ -49,7 +54,9 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   for (const auto& r : dregions) out.depth_regions.emplace_back(r.contour.begin(), r.contour.end());
 
   tp.Restart();
-  const std::vector<PhotoRegion> pregions = SegmentOptical(std::move(photo), o.optical);
+  std::vector<PhotoRegion> pregions;
+  if (regions) pregions = SegmentOptical(std::move(photo), o.optical);
+  photo.release();
   // contours back in full-size photo px (pixel centres at integers)
   for (const auto& r : pregions) {
     Contour c;
@@ -61,10 +68,46 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   out.segment_photo_ms = photo_ms + tp.ElapsedMs();
 
   std::optional<EdgeEvidence> evidence;
-  if (!grey.empty()) evidence.emplace(grey, f, out.depth_regions, o.edge);
+  if (o.image_check && !grey.empty()) evidence.emplace(grey, f, out.depth_regions, o.edge);
+  if (regions) {
+    out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,
+                                        evidence ? &*evidence : nullptr);
+    out.method = "regions";
+    if (out.registration.ok) {
+      // 0.5 at the acceptance limit (3 pairs), 1 from 10 pairs on
+      out.confidence = std::clamp(0.5 + 0.5 * (double(out.registration.region_matches.size()) - 3.0) / 7.0, 0.5, 1.0);
+      return out;
+    }
+  }
+  if (o.method == Method::kRegions) return out;
+  if (o.method == Method::kAuto && int(out.depth_regions.size()) > o.auto_outline_max_regions) return out;
+  // The outline search: no photo segmentation, the depth outlines against
+  // the photo's oriented edges (outline_search.h).
+  Timer ts;
+  OutlineSearchOptions so = o.outline;
+  if (o.photo_res_m > 0 && o.depth_res_m > 0 && so.scale_hint <= 0) so.scale_hint = o.photo_res_m / o.depth_res_m;
+  so.perspective = o.registration.model == RegistrationOptions::Model::kAuto ||
+                   o.registration.model == RegistrationOptions::Model::kPerspective;
+  out.outline = SearchOutlines(grey, f, out.depth_regions, so, evidence ? &*evidence : nullptr);
+  out.outline_search_ran = true;
+  out.outline_search_ms = ts.ElapsedMs();
   grey.release();
-  out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,
-                                      evidence ? &*evidence : nullptr);
+  if (out.outline.ok || !regions) {
+    Registration r;
+    r.ok = out.outline.ok;
+    r.reason = out.outline.reason;
+    r.photo_to_depth = out.outline.photo_to_depth;
+    r.model = out.outline.model;
+    r.edge = out.outline.edge;
+    r.propagate_ms = out.outline.ms;
+    if (regions) r.match_ms = out.registration.match_ms, r.propagate_ms += out.registration.propagate_ms;
+    out.registration = std::move(r);
+    out.method = "outlines";
+    out.confidence = out.outline.ok ? out.outline.confidence : 0.0;
+  } else {
+    out.registration.reason += "; " + out.outline.reason.substr(out.outline.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0);
+    out.confidence = 0;
+  }
   return out;
 }
 

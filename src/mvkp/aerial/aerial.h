@@ -5,6 +5,7 @@
 // module's register_aerial().
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -12,6 +13,7 @@
 #include "mvkp/buildings/depth_regions.h"
 #include "mvkp/ortho/optical_regions.h"
 #include "mvkp/shapes/edge_evidence.h"
+#include "mvkp/shapes/outline_search.h"
 #include "mvkp/shapes/register.h"
 
 namespace mvkp {
@@ -24,6 +26,17 @@ struct AerialOptions {
   OpticalSegmentOptions optical;
   EdgeEvidenceOptions edge;
   RegistrationOptions registration;
+  // Which method answers (issue 21). kRegions: region shapes (register.h)
+  // only. kOutlines: the outline search (outline_search.h) only. kAuto: the
+  // regions first; the outline search when they find no registration.
+  enum class Method { kAuto, kRegions, kOutlines } method = Method::kAuto;
+  int auto_outline_max_regions = 12;  // kAuto runs the outline search only on depths with at most this
+                                      //   many building regions: on larger tiles it added no success in
+                                      //   our measurements and cost 2.5 s and 40-90 MB (docs/aerial.md)
+  OutlineSearchOptions outline;
+  // Ground size of a pixel, metres (0: unknown). When both are known the
+  // outline search looks only near their ratio of scales.
+  double photo_res_m = 0, depth_res_m = 0;
   void Check() const;  // throws Error(kInvalidArgument)
 };
 
@@ -32,6 +45,11 @@ struct AerialRegistration {
   std::vector<Contour> photo_regions;  // in full-size photo px
   std::vector<Contour> depth_regions;  // depth px
   std::vector<double> photo_region_confidence;  // per photo region (ortho's confidence)
+  std::string method;                  // which method gave `registration`: "regions" | "outlines"
+  double confidence = 0;               // [0, 1] of the answer (see docs/aerial.md); 0 when !ok
+  bool outline_search_ran = false;
+  OutlineSearchResult outline;         // the outline search's own result, when it ran
+  double outline_search_ms = 0;
   double segment_depth_ms = 0, segment_photo_ms = 0;
 };
 

@@ -1,0 +1,100 @@
+// Second registration method (issue 21): a global search of the depth's
+// building outlines over the photo's oriented edges, for the cases the region
+// method (register.h) cannot handle: few buildings (3-6 region pairs are not
+// enough evidence) and coarse photos (buildings a few photo px across, which
+// the photo segmentation does not separate).
+//
+// No photo segmentation is used. The depth outlines (every segmented building
+// region) are a template of oriented points; the photo is a field of oriented
+// gradient, in the doubled-angle form  P = m * exp(2i phi)  (m the gradient
+// magnitude normalised by its mean and clipped, phi its direction), so an
+// outline normal psi scores  m cos 2(phi - psi): + on an edge along the
+// outline whatever its polarity, - across it, 0 on average at random.
+//
+//  1. Rotation prior: the histograms of outline normals (depth) and photo
+//     gradient directions, both modulo 90 degrees, are cross-correlated; the
+//     best `rotation_peaks` offsets, each +- rotation_window_deg, x 4
+//     quadrants, are the rotations searched (all 360 degrees when the
+//     histograms have no clear peak: round or irregular buildings).
+//  2. Coarse search: the depth is seen in cells of c depth px (c: a fifth of
+//     the median building side, at least the outline extent / 48). For each
+//     scale hypothesis (log steps; the range narrowed to the ratio of ground
+//     resolutions when both are known) the photo is resampled to cells and
+//     its field Fourier-transformed once; for each rotation the template is
+//     splatted into cells and correlated with it by FFT, giving every
+//     translation at once. A translation's score is a z-score: the
+//     correlation over sqrt(null variance x outline samples in the photo),
+//     with at least min_overlap of the samples in the photo.
+//  3. The best distinct coarse poses are refined at photo resolution
+//     (coordinate ascent of the same score on the similarity), then by the
+//     image check's edge refinement (EdgeEvidence::Refine, similarity then
+//     homography) when an EdgeEvidence is given.
+//  4. Acceptance (never a wrong success): the best refined pose must beat
+//     the best refined pose that is clearly different (its outlines > 10
+//     depth px away on average: a null from the same search, which accounts
+//     for how many poses were tried), and the outlines must lie on edges.
+//     confidence = clamp(2 (z1 - z2) / z1, 0, 1) with z1, z2 those two
+//     refined scores; accepted when confidence >= min_confidence (0.5, i.e.
+//     the runner-up scores at most 3/4 of the best), at least min_outlines
+//     (2) outlines are in view, and with an EdgeEvidence its contrast passes
+//     (1.8) with at least half of the outlines in view on edges.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "mvkp/shapes/edge_evidence.h"
+#include "mvkp/shapes/shape_context.h"
+
+namespace mvkp {
+
+struct OutlineSearchOptions {
+  double min_scale = 0.25, max_scale = 4.0;  // depth px per photo px searched (when no hint)
+  double scale_hint = 0;            // > 0: expected depth px per photo px (ratio of ground resolutions) ...
+  double scale_hint_tolerance = 0.15;  // ... searched within this relative margin
+  double max_extent_ratio = 4.0;    // photo ground extent / outline extent, at most (bounds the scales)
+  double min_extent_ratio = 0.2;    // ... at least
+  double cells_per_building = 5;    // coarse cell = median building side / this ...
+  int max_template_radius = 24;     // ... but the outline template at most this many cells in radius
+  double step_factor = 1.0;         // rotation / log-scale step = step_factor / template radius (rad)
+  int rotation_peaks = 2;           // rotation prior: offsets (mod 90 deg) kept
+  double rotation_window_deg = 6;   // searched around each offset
+  double min_rotation_peakiness = 1.6;  // histogram correlation max / mean below this: search 360 deg
+  double min_overlap = 0.25;        // share of outline samples inside the photo for a pose
+  int min_samples = 60;             // outline samples inside the photo, at least
+  int coarse_candidates = 30;       // distinct coarse poses refined
+  double distinct_px = 10;          // poses whose outlines differ by more than this (mean, depth px)
+                                    //   are different answers
+  double min_confidence = 0.5;      // accepted at confidence >= this ...
+  int min_outlines = 2;             // ... with this many outlines in view (1 is not enough: a lone
+                                    //   outline sits on any similar rectangle of other ground), and, with
+                                    //   evidence, the image check passed with at least half of the outlines
+                                    //   in view on edges
+  bool perspective = true;          // final EdgeEvidence refinement includes the homography
+  void Check() const;               // throws Error(kInvalidArgument)
+};
+
+struct OutlineSearchResult {
+  bool ok = false;
+  std::string reason;
+  cv::Matx33d photo_to_depth = cv::Matx33d::eye();  // contour (full-size) photo px -> depth px
+  std::string model;                 // "similarity" | "perspective"
+  double confidence = 0;             // [0, 1]
+  double score = 0, runner_up = 0;   // refined z-scores of the best and of the best clearly different pose
+  double coverage = 0;               // share of outline samples inside the photo at the answer
+  int outlines_in_view = 0;          // outlines with >= 10 samples inside the photo at the answer
+  EdgeScore edge;                    // image check at the answer (when evidence given)
+  int poses = 0;                     // (rotation, scale) pairs correlated
+  double ms = 0;
+};
+
+// `photo`: 8-bit grey or BGR, possibly downscaled: contour px * photo_scale =
+// image px (as EdgeEvidence). `outlines`: closed building outlines, depth px.
+// `evidence` (optional): the image check on the same photo and outlines;
+// used for the final refinement and acceptance.
+OutlineSearchResult SearchOutlines(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& outlines,
+                                   const OutlineSearchOptions& options = {}, const EdgeEvidence* evidence = nullptr);
+
+}  // namespace mvkp

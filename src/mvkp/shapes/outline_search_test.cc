@@ -1,0 +1,115 @@
+#include "mvkp/shapes/outline_search.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+namespace mvkp {
+namespace {
+
+cv::Point2d Apply(const cv::Matx33d& H, cv::Point2d p) {
+  const cv::Vec3d q = H * cv::Vec3d(p.x, p.y, 1);
+  return {q[0] / q[2], q[1] / q[2]};
+}
+
+cv::Matx33d Similarity(double s, double deg, double tx, double ty) {
+  const double a = deg * CV_PI / 180, c = s * std::cos(a), n = s * std::sin(a);
+  return {c, -n, tx, n, c, ty, 0, 0, 1};
+}
+
+// A few building outlines in a depth image of 200 x 200 px.
+std::vector<Contour> Buildings() {
+  std::vector<Contour> b;
+  auto rect = [&](float x, float y, float w, float h) { b.push_back({{x, y}, {x, y + h}, {x + w, y + h}, {x + w, y}}); };
+  rect(20, 30, 40, 25);
+  rect(120, 20, 30, 50);
+  rect(40, 120, 55, 30);
+  b.push_back({{130, 110}, {130, 170}, {180, 170}, {180, 150}, {150, 150}, {150, 110}});  // an L
+  return b;
+}
+
+// The photo of those buildings seen through `photo_to_depth`: roofs brighter
+// than the ground, some noise and clutter.
+cv::Mat Photo(const std::vector<Contour>& b, const cv::Matx33d& photo_to_depth, cv::Size size, unsigned seed) {
+  cv::Mat1b img(size, 90);
+  cv::RNG rng(seed);
+  const cv::Matx33d D = photo_to_depth.inv();
+  for (int k = 0; k < 25; ++k) {  // clutter: blobs that are not buildings
+    const cv::Point c(rng.uniform(0, size.width), rng.uniform(0, size.height));
+    cv::circle(img, c, rng.uniform(2, 8), cv::Scalar(rng.uniform(60, 140)), -1, cv::LINE_AA);
+  }
+  for (const auto& c : b) {
+    std::vector<cv::Point> p;
+    for (const auto& q : c) {
+      const cv::Point2d u = Apply(D, q);
+      p.emplace_back(int(std::lround(u.x * 16)), int(std::lround(u.y * 16)));
+    }
+    cv::fillPoly(img, std::vector<std::vector<cv::Point>>{p}, cv::Scalar(170 + rng.uniform(0, 40)), cv::LINE_AA, 4);
+  }
+  cv::Mat1f noise(size);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 4);
+  cv::Mat1f f;
+  img.convertTo(f, CV_32F);
+  f += noise;
+  cv::GaussianBlur(f, f, cv::Size(), 0.8);
+  f.convertTo(img, CV_8U);
+  return img;
+}
+
+double MeanError(const cv::Matx33d& A, const cv::Matx33d& B, cv::Size photo) {
+  double s = 0;
+  int n = 0;
+  for (int y = 0; y <= photo.height; y += photo.height / 4)
+    for (int x = 0; x <= photo.width; x += photo.width / 4) s += cv::norm(Apply(A, {double(x), double(y)}) - Apply(B, {double(x), double(y)})), ++n;
+  return s / n;
+}
+
+TEST(OutlineSearch, OptionsCheck) {
+  OutlineSearchOptions o;
+  EXPECT_NO_THROW(o.Check());
+  o.min_scale = 0;
+  EXPECT_ANY_THROW(o.Check());
+}
+
+// Outlines drawn into a photo at a known rotation, scale and shift are found
+// to a fraction of a pixel, at several scales (depth px per photo px).
+TEST(OutlineSearch, FindsDrawnOutlinesExactly) {
+  const auto b = Buildings();
+  for (const auto& [s, deg] : {std::pair{0.6, 37.0}, std::pair{1.0, 200.0}, std::pair{2.0, 300.0}}) {
+    const cv::Size size(int(260 / s), int(240 / s));
+    // photo centre onto depth (100, 100)
+    cv::Matx33d T = Similarity(s, deg, 0, 0);
+    const cv::Point2d c = Apply(T, {size.width / 2.0, size.height / 2.0});
+    T(0, 2) = 100 - c.x, T(1, 2) = 100 - c.y;
+    const cv::Mat photo = Photo(b, T, size, 7);
+    const OutlineSearchResult r = SearchOutlines(photo, 1.0, b);
+    SCOPED_TRACE(r.reason);
+    EXPECT_LT(MeanError(r.photo_to_depth, T, size), 1.0) << "scale " << s << " rotation " << deg;
+    EXPECT_TRUE(r.ok);
+    EXPECT_GE(r.confidence, 0.5);
+  }
+}
+
+// Other ground: a photo of different buildings (and clutter). Whatever pose
+// scores best, it must not be reported as a registration.
+TEST(OutlineSearch, RefusesOtherGround) {
+  const auto b = Buildings();
+  std::vector<Contour> other;
+  cv::RNG rng(5);
+  for (int k = 0; k < 6; ++k) {
+    const float x = float(rng.uniform(0, 170)), y = float(rng.uniform(0, 170)), w = float(rng.uniform(12, 40)),
+                h = float(rng.uniform(12, 40));
+    other.push_back({{x, y}, {x, y + h}, {x + w, y + h}, {x + w, y}});
+  }
+  for (unsigned seed : {1u, 2u, 3u}) {
+    const cv::Matx33d T = Similarity(0.8, 60.0 * seed, 20, -10);
+    const cv::Mat photo = Photo(other, T, cv::Size(300, 280), seed);
+    const OutlineSearchResult r = SearchOutlines(photo, 1.0, b);
+    EXPECT_FALSE(r.ok) << r.reason;
+    EXPECT_LT(r.confidence, OutlineSearchOptions{}.min_confidence) << r.reason;
+  }
+}
+
+}  // namespace
+}  // namespace mvkp
