@@ -333,6 +333,9 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "image check: depth outlines must lie on photo edges this much more than beside them (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
+  c->add_flag("!--accept-shapes-alone", a->opt.require_image_evidence,
+              "also accept on region shapes alone when the image check fails (leaning orthophotos; "
+              "can accept look-alike sets far off)");
   c->add_flag("!--no-edge-refine", a->opt.edge_refine, "keep the shape-fitted transform (no snapping onto photo edges)");
   c->add_option("--fbm", a->fbm, "fBm model file (mvkp ortho-models fit-fbm; default: fitted on the photo)");
   c->add_option("--lda", a->lda, "region LDA file (mvkp ortho-models train-lda; default: built in)");

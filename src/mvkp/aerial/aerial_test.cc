@@ -124,6 +124,25 @@ TEST(Aerial, PhotoContoursInFullSizePixels) {
   }
 }
 
+// A town of small look-alike houses (suburb style, `synth-city --style
+// suburb --seed 1` scene 0): region shapes alone pair 5 houses, sheds and
+// pools with the photo squeezed onto a patch of the depth, hundreds of px
+// off, with the outlines not on photo edges. The default acceptance needs
+// the image check and refuses it; shapes alone (the old default) take it.
+TEST(Aerial, LookAlikeHousesAreRefusedWithoutImageEvidence) {
+  CityOptions o;
+  o.style = "suburb";
+  const City c = MakeCity(o, 1000003);
+  const AerialRegistration r = RegisterAerial(c.depth, c.photo);
+  if (r.registration.ok) EXPECT_LT(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
+  AerialOptions shapes;
+  shapes.registration.require_image_evidence = false;
+  const AerialRegistration w = RegisterAerial(c.depth, c.photo, shapes);
+  ASSERT_TRUE(w.registration.ok) << w.registration.reason;
+  EXPECT_GT(CornerError(c, w.registration.photo_to_depth), 50.0);
+  EXPECT_LT(w.registration.edge.contrast, 1.8);
+}
+
 TEST(Aerial, ImageCheckCanBeTurnedOff) {
   CityOptions o;
   o.width = o.height = 500;

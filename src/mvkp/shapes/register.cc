@@ -26,6 +26,7 @@ void RegistrationOptions::Check() const {
   need(inlier_px > 0 && inlier_fraction > 0 && inlier_fraction <= 1,
        "RegistrationOptions: inlier_px > 0, inlier_fraction in (0, 1]");
   need(max_area_ratio >= 1, "RegistrationOptions.max_area_ratio must be >= 1");
+  need(max_perspective >= 0 && std::isfinite(max_perspective), "RegistrationOptions.max_perspective must be >= 0");
   need(min_regions >= 2 && min_regions_with_evidence >= 2,
        "RegistrationOptions: min_regions and min_regions_with_evidence must be >= 2");
   need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1 && min_inlier_ratio_with_evidence >= 0 &&
@@ -422,12 +423,36 @@ std::optional<PrincipalDirections> DetectPrincipalDirections(const std::vector<C
 
 // ---- registration ------------------------------------------------------------
 
+// Largest relative change of the projective divisor w = h31 x + h32 y + h33
+// between the centre of `r` and its corners: 0 for an affine map; a nadir
+// photo's perspective changes it by a few per cent.
+static double PerspectiveAmount(const cv::Matx33d& T, const cv::Rect2d& r) {
+  const auto w = [&](double x, double y) { return T(2, 0) * x + T(2, 1) * y + T(2, 2); };
+  const double wc = w(r.x + r.width / 2, r.y + r.height / 2);
+  if (!(std::abs(wc) > 1e-12)) return std::numeric_limits<double>::infinity();
+  double p = 0;
+  for (const double x : {r.x, r.x + r.width})
+    for (const double y : {r.y, r.y + r.height}) p = std::max(p, std::abs(w(x, y) / wc - 1));
+  return p;
+}
+
 Registration RegisterContours(const std::vector<Contour>& photo_regions, const std::vector<Contour>& depth_regions,
                               const RegistrationOptions& opt, const EdgeEvidence* evidence) {
   opt.Check();
   Registration res;
   Timer timer;
   const std::vector<Region> photo = Prepare(photo_regions, opt);
+  // The photo's extent, as far as its regions show it (for the perspective check).
+  cv::Rect2d photo_extent;
+  {
+    float x0 = std::numeric_limits<float>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (const auto& c : photo_regions)
+      for (const auto& q : c) {
+        x0 = std::min(x0, q.x), y0 = std::min(y0, q.y);
+        x1 = std::max(x1, q.x), y1 = std::max(y1, q.y);
+      }
+    if (x1 >= x0 && y1 >= y0) photo_extent = cv::Rect2d(x0, y0, x1 - x0, y1 - y0);
+  }
   const std::vector<Region> depth = Prepare(depth_regions, opt);
   if (photo.empty() || depth.empty()) {
     res.reason = std::string("no registration found: no usable ") + (photo.empty() ? "photo" : "depth") +
@@ -692,8 +717,10 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     //    pairs, tighter);
     //  - shapes + image: the outlines lie on photo edges (EdgeEvidence), with
     //    min_regions_with_evidence pairs and edge_rms_factor x the RMS bound.
-    // Photos whose roofs lean (conventional orthophotos) can fail the image
-    // check while the shapes agree; the shape-only route still holds there.
+    // The shapes-alone route is taken only without the image check, or when
+    // require_image_evidence is off (photos whose roofs lean far, where the
+    // image check fails while the shapes agree; it also accepts look-alike
+    // sets far off, so it is not the default).
     const double support = std::clamp((double(pairs.size()) - 1.0) / 5.0, 0.5, 1.0);
     const double max_rms = support * opt.max_rms_px * tol / opt.inlier_px;
     const Fitted shape_fit = f;
@@ -718,7 +745,16 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       image_ok = consistent && evidence->Accepts(es) && f.rms <= opt.edge_rms_factor * max_rms;
     }
     res.edge = es;
-    if (!shape_ok && !image_ok) {
+    // With the image check on, every answer needs it: shapes alone accepted
+    // 4-6 pairs of look-alike small rectangles (houses, sheds, pools) with
+    // the photo squeezed onto a patch of the depth, 120-850 px off, whose
+    // outlines were not on photo edges (contrast 0.9-1.6; issue 21).
+    const bool accepted = evidence && opt.require_image_evidence ? image_ok : (shape_ok || image_ok);
+    if (!accepted) {
+      if (consistent && evidence && !es.enough && f.rms <= opt.edge_rms_factor * max_rms)
+        return cv::format("best consistent set (%d region pairs) puts too few depth outlines in the photo for "
+                          "the image check (%d samples, need %d)",
+                          int(pairs.size()), es.points, evidence->options().min_points);
       if (!consistent || !es.enough || f.rms > opt.edge_rms_factor * max_rms)
         return cv::format("best consistent set fails the checks (%d region pairs, ratio %.2f, RMS %.2f px > %.2f)",
                           int(pairs.size()), ratio, shape_fit.rms, max_rms);
@@ -747,6 +783,18 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       if (e.regions >= 8 && e.regions_on_edges < evidence->options().min_regions_on_edges * e.regions)
         return cv::format("best consistent set fits only part of the photo (%d of %d outlines in view on edges)",
                           e.regions_on_edges, e.regions);
+      // The refinement may leave the basin it was accepted in (a strong
+      // perspective pulled toward other edges): judge the transform given.
+      if (!evidence->Accepts(e))
+        return cv::format("best consistent set's refined outlines are not on photo edges (contrast %.2f < %.2f)",
+                          e.contrast, evidence->options().min_contrast);
+    }
+    // A nadir photo: the projective divisor changes little across it.
+    if (opt.max_perspective > 0) {
+      const double p = PerspectiveAmount(f.T, photo_extent);
+      if (p > opt.max_perspective)
+        return cv::format("best consistent set needs a steep perspective (divisor changes by %.2f across the "
+                          "photo > %.2f)", p, opt.max_perspective);
     }
     double scale, rot;
     if (!LocalScaleRotation(f.T, photo[pairs[0].first].centroid, &scale, &rot))

@@ -79,6 +79,12 @@ struct RegistrationOptions {
   double edge_rms_factor = 2.0;       // with image evidence (EdgeEvidence): max RMS = this * the
                                       //   shape-only bound, since the outlines-on-edges test decides
   bool edge_refine = true;            // with image evidence: snap the outlines onto the photo edges
+  double max_perspective = 0.25;       // refuse a transform whose projective divisor changes by more
+                                      //   than this across the photo's regions (a nadir photo's changes
+                                      //   by a few per cent; wrong sets fitted 0.3+); 0: no check
+  bool require_image_evidence = true; // with image evidence given: accept only through it (shapes
+                                      //   alone gave answers 120-850 px off on towns of small
+                                      //   look-alike houses); false: shapes alone may also accept
   bool use_principal_directions = false; // §7.2.4: try hypotheses whose rotation fits the
                                          //   principal directions first; falls back to all
   double principal_tolerance_deg = 12;   // allowed rotation deviation from a predicted one
