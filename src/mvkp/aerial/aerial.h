@@ -53,6 +53,11 @@ struct AerialRegistration {
   double segment_depth_ms = 0, segment_photo_ms = 0;
 };
 
+// Confidence of a region-method answer with `pairs` region pairs: the share
+// of such answers that were right (within 5 px) on the tuning scenes
+// (docs/aerial.md, "Confidence"), in [0.67, 0.97].
+double RegionConfidence(int pairs);
+
 // `depth`: heights in metres (NaN = no data). `photo`: 8-bit BGR or grey.
 // Both are taken by value: pass them with std::move when the caller does not
 // need them any more, and their pixels are freed as soon as the pipeline is
