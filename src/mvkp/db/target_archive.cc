@@ -217,7 +217,10 @@ std::vector<ArchiveTarget> ParseTargetArchive(const Bytes& file, const std::stri
   lim.max_string_bytes = lim.max_bytes;
   const Json j = ParseJsonLimited(std::string_view(reinterpret_cast<const char*>(m->second.data()), m->second.size()),
                                   lim, path + ": " + kManifest);
-  if (!j.is_object() || j.value("format", "") != kFormat || !j.contains("targets") || !j["targets"].is_array())
+  // Types checked before values: json's value()/get() throw on a wrong type (a
+  // number for "format" crashed the fuzzer), and only mvkp::Error may leave here.
+  if (!j.is_object() || !j.contains("format") || !j["format"].is_string() ||
+      j["format"].get<std::string>() != kFormat || !j.contains("targets") || !j["targets"].is_array())
     Bad(path, std::string(kManifest) + " is not a target archive manifest");
   if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int>() > kVersion)
     Bad(path, "archive version is newer than this build's " + std::to_string(kVersion));

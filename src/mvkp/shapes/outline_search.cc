@@ -436,10 +436,12 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     int n = 0;
     for (const auto& s : fs) {
       const cv::Point2d p = Map(D, s.q), pn = Map(D, cv::Point2d(s.q) + cv::Point2d(s.n));
-      const double ux = (p.x * ps + 0.5) * f.k - 0.5, uy = (p.y * ps + 0.5) * f.k - 0.5;
+      // bounds on the float coordinates At2 gets: a double just below w - 1
+      // rounds to w - 1 as a float, and its bilinear cell reads past the field
+      const float ux = float((p.x * ps + 0.5) * f.k - 0.5), uy = float((p.y * ps + 0.5) * f.k - 0.5);
       if (!(ux >= 0 && uy >= 0 && ux < w - 1 && uy < h - 1)) continue;
       const double a = std::atan2(pn.y - p.y, pn.x - p.x);
-      const cv::Vec2f v = At2(f.P, float(ux), float(uy));
+      const cv::Vec2f v = At2(f.P, ux, uy);
       sum += v[0] * std::cos(2 * a) + v[1] * std::sin(2 * a);
       ++n;
     }
