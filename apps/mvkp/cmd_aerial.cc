@@ -224,6 +224,14 @@ int RunRegister(RegisterArgs& a) {
     // which method answered ("method" is the tool's name in the correspondence JSON)
     out["registration_method"] = reg.ok ? Json(ar.method) : Json(nullptr);
     out["confidence"] = reg.ok ? ar.confidence : 0.0;
+    // the photo's lean (conventional orthophoto): roofs show lean * height
+    // away from their footprints; the homography maps the ground
+    if (reg.ok) {
+      out["lean_depth_px_per_m"] = {reg.lean_px_per_m.x, reg.lean_px_per_m.y};
+      out["lean_m_per_m"] = d.res_m > 0 ? Json{reg.lean_px_per_m.x * d.res_m, reg.lean_px_per_m.y * d.res_m} : Json(nullptr);
+    } else {
+      out["lean_depth_px_per_m"] = nullptr, out["lean_m_per_m"] = nullptr;
+    }
     if (ar.outline_search_ran) {
       const OutlineSearchResult& os = ar.outline;
       out["outline_search"] = {{"ok", os.ok},           {"confidence", os.confidence}, {"score", os.score},

@@ -236,6 +236,11 @@ void BindAerial(py::module_& m) {
         return r.reg.ok && !r.method.empty() ? py::object(py::str(r.method)) : py::object(py::none());
       }, "register_aerial: which method answered, 'regions' or 'outlines' (None when not registered)")
       .def_readonly("confidence", &PyRegistration::confidence, "register_aerial: confidence of the answer in [0, 1] (0 when not registered)")
+      .def_property_readonly("lean_depth_px_per_m", [](const PyRegistration& r) -> py::object {
+        if (!r.reg.ok) return py::none();
+        return py::make_tuple(r.reg.lean_px_per_m.x, r.reg.lean_px_per_m.y);
+      }, "The photo's estimated lean (conventional orthophoto): roofs show this many depth px per metre of "
+         "height from their footprints; photo_to_depth maps the ground. (0, 0) unless estimated; None when not registered.")
       .def("__bool__", [](const PyRegistration& r) { return r.reg.ok; })
       .def("__repr__", [](const PyRegistration& r) {
         if (!r.reg.ok) return "Registration(ok=False, reason='" + r.reg.reason + "')";

@@ -38,6 +38,7 @@ def test_segment_and_register(city):
         assert r2.correspondences.shape[1] == 4 and r2.region_matches
     else:
         assert r2.homography is None and r2.reason.startswith("no registration found")
+        assert r2.lean_depth_px_per_m is None
 
 
 def test_register_aerial_method_and_confidence():
@@ -50,6 +51,8 @@ def test_register_aerial_method_and_confidence():
     h, w = c.photo.shape[:2]
     assert mvkp.mean_corner_error(r.homography, c.photo_to_depth, w, h) < 5.0
     assert r.time_ms["outline_search"] > 0
+    lean = r.lean_depth_px_per_m  # estimated only with >= 6 outlines of several heights: none here
+    assert len(lean) == 2 and all(np.isfinite(lean))
     r2 = mvkp.register_aerial(c.depth, c.photo, method="regions")
     assert r2.method in (None, "regions") and (r2.ok or r2.confidence == 0.0)
     with pytest.raises(ValueError, match="method"):

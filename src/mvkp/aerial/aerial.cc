@@ -81,7 +81,14 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   out.segment_photo_ms = photo_ms + tp.ElapsedMs();
 
   std::optional<EdgeEvidence> evidence;
-  if (o.image_check && !grey.empty()) evidence.emplace(grey, f, out.depth_regions, o.edge);
+  if (o.image_check && !grey.empty()) {
+    std::vector<float> heights;
+    for (const auto& r : dregions) heights.push_back(r.height);
+    EdgeEvidenceOptions eo = o.edge;
+    // the lean bound is 0.4 m per metre of height (a wide-angle camera's edge)
+    if (o.depth_res_m > 0 && eo.max_lean_px_per_m > 0) eo.max_lean_px_per_m = 0.4 / o.depth_res_m;
+    evidence.emplace(grey, f, out.depth_regions, eo, heights);
+  }
   if (regions) {
     out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,
                                         evidence ? &*evidence : nullptr);
@@ -111,6 +118,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     r.photo_to_depth = out.outline.photo_to_depth;
     r.model = out.outline.model;
     r.edge = out.outline.edge;
+    r.lean_px_per_m = out.outline.lean_px_per_m;
     r.propagate_ms = out.outline.ms;
     if (regions) r.match_ms = out.registration.match_ms, r.propagate_ms += out.registration.propagate_ms;
     out.registration = std::move(r);

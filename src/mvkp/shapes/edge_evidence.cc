@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -21,6 +22,10 @@ void EdgeEvidenceOptions::Check() const {
   need(outward_growth > 1, "EdgeEvidenceOptions.outward_growth must be > 1");
   need(min_region_points >= 1 && min_region_contrast > 0 && min_regions_on_edges >= 0 && min_regions_on_edges <= 1,
        "EdgeEvidenceOptions: min_region_points >= 1, min_region_contrast > 0, min_regions_on_edges in [0, 1]");
+  need(max_lean_px_per_m >= 0 && max_lean_px_per_m <= 10 && min_lean_gain >= 0 && min_lean_outlines >= 3 &&
+           min_lean_height_spread_m >= 0,
+       "EdgeEvidenceOptions: max_lean_px_per_m in [0, 10], min_lean_gain >= 0, min_lean_outlines >= 3, "
+       "min_lean_height_spread_m >= 0");
 }
 
 namespace {
@@ -43,13 +48,15 @@ inline cv::Point2d Map(const cv::Matx33d& H, cv::Point2d p) {
 }  // namespace
 
 EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& depth_regions,
-                           const EdgeEvidenceOptions& options)
+                           const EdgeEvidenceOptions& options, const std::vector<float>& heights)
     : opt_(options), photo_scale_(photo_scale) {
   opt_.Check();
   Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
           ErrorCode::kInvalidArgument, "EdgeEvidence: the photo must be 8-bit grey or BGR");
   Require(photo_scale > 0 && std::isfinite(photo_scale), ErrorCode::kInvalidArgument,
           "EdgeEvidence: photo_scale must be > 0");
+  Require(heights.empty() || heights.size() == depth_regions.size(), ErrorCode::kInvalidArgument,
+          "EdgeEvidence: heights must be empty or one per depth region");
   cv::Mat g;
   if (photo.channels() == 3) cv::cvtColor(photo, g, cv::COLOR_BGR2GRAY);
   else g = photo;
@@ -58,8 +65,10 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
 
   // Outline samples every step_px of arc length, with normals from the
   // neighbouring samples (closed contours).
-  for (const Contour& c : depth_regions) {
+  for (size_t ci = 0; ci < depth_regions.size(); ++ci) {
+    const Contour& c = depth_regions[ci];
     if (c.size() < 3) continue;
+    const float hc = heights.empty() || !std::isfinite(heights[ci]) ? 0.f : std::max(0.f, heights[ci]);
     std::vector<cv::Point2f> pts;
     double carry = 0;
     for (size_t i = 0, n = c.size(); i < n; ++i) {
@@ -75,7 +84,7 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
       const cv::Point2f d = pts[(i + 1) % n] - pts[(i + n - 1) % n];
       const double len = cv::norm(d);
       if (len < 1e-6) continue;
-      samples_.push_back({pts[i], cv::Point2f(float(-d.y / len), float(d.x / len)), regions_});
+      samples_.push_back({pts[i], cv::Point2f(float(-d.y / len), float(d.x / len)), regions_, hc});
     }
     ++regions_;
   }
@@ -87,9 +96,16 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
     for (size_t i = 0; i < kMaxSamples; ++i) kept.push_back(samples_[i * samples_.size() / kMaxSamples]);
     samples_.swap(kept);
   }
+  if (!heights.empty() && !samples_.empty()) {
+    std::vector<float> hs;
+    for (const Sample& s : samples_) hs.push_back(s.h);
+    std::nth_element(hs.begin(), hs.begin() + hs.size() / 2, hs.end());
+    ref_height_ = hs[hs.size() / 2];
+    has_heights_ = ref_height_ > 1.0;  // a lean needs buildings of some height
+  }
 }
 
-double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double search_px, int* points,
+double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offset_px, double search_px, int* points,
                             const cv::Rect2d* support, std::vector<double>* region_sum,
                             std::vector<int>* region_count) const {
   const float w = float(grey_.cols), h = float(grey_.rows);
@@ -100,8 +116,9 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double searc
   const double reach = opt_.offset_px + opt_.search_px;
   for (const Sample& s : samples_) {
     if (support && !support->contains(cv::Point2d(s.q))) continue;
-    const cv::Point2d p = Map(D, s.q);
-    const cv::Point2d pn = Map(D, cv::Point2d(s.q) + cv::Point2d(s.n));
+    const cv::Point2d q = cv::Point2d(s.q) + lean * double(s.h);
+    const cv::Point2d p = Map(D, q);
+    const cv::Point2d pn = Map(D, q + cv::Point2d(s.n));
     cv::Point2d nu = pn - p;
     const double k = std::hypot(nu.x, nu.y);  // image px per depth px
     if (!(k > 1e-6) || k > 100) continue;
@@ -127,16 +144,16 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, double offset_px, double searc
   return count ? sum / count : 0.0;
 }
 
-EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth) const {
+EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean) const {
   EdgeScore s;
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   const cv::Matx33d D = S * photo_to_depth.inv();
   int n0 = 0, n1 = 0, n2 = 0;
   std::vector<double> on_r(size_t(regions_), 0.0), off_r(size_t(regions_), 0.0);
   std::vector<int> n_on(size_t(regions_), 0), n_off(size_t(regions_), 0);
-  s.on = OnEdge(D, 0, opt_.search_px, &n0, nullptr, &on_r, &n_on);
-  const double a = OnEdge(D, -opt_.offset_px, opt_.search_px, &n1, nullptr, &off_r, &n_off);
-  const double b = OnEdge(D, opt_.offset_px, opt_.search_px, &n2, nullptr, &off_r, &n_off);
+  s.on = OnEdge(D, lean, 0, opt_.search_px, &n0, nullptr, &on_r, &n_on);
+  const double a = OnEdge(D, lean, -opt_.offset_px, opt_.search_px, &n1, nullptr, &off_r, &n_off);
+  const double b = OnEdge(D, lean, opt_.offset_px, opt_.search_px, &n2, nullptr, &off_r, &n_off);
   for (int r = 0; r < regions_; ++r) {
     if (n_on[size_t(r)] < opt_.min_region_points) continue;
     ++s.regions;
@@ -151,20 +168,23 @@ EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth) const {
 }
 
 cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
-                                 const cv::Rect2d* support) const {
+                                 const cv::Rect2d* support, cv::Point2d* lean) const {
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   // the outline points in view define the frame of the correction
   int n = 0;
   const cv::Matx33d D0 = S * photo_to_depth.inv();
-  if (OnEdge(D0, 0, 0, &n, support), n < opt_.min_points) return photo_to_depth;
+  const cv::Point2d lean0 = lean ? *lean : cv::Point2d();
+  if (OnEdge(D0, lean0, 0, 0, &n, support), n < opt_.min_points) return photo_to_depth;
   const float w = float(grey_.cols), h = float(grey_.rows);
   cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
+  std::vector<float> region_h(size_t(regions_), -1.f);  // height of each outline in view
   for (const Sample& s : samples_) {
     if (support && !support->contains(cv::Point2d(s.q))) continue;
-    const cv::Point2d p = Map(D0, s.q);
+    const cv::Point2d p = Map(D0, cv::Point2d(s.q) + lean0 * double(s.h));
     if (p.x < 0 || p.y < 0 || p.x >= w || p.y >= h) continue;
     lo.x = std::min(lo.x, double(s.q.x)), lo.y = std::min(lo.y, double(s.q.y));
     hi.x = std::max(hi.x, double(s.q.x)), hi.y = std::max(hi.y, double(s.q.y));
+    region_h[size_t(s.region)] = s.h;
   }
   if (!(hi.x - lo.x > 4 && hi.y - lo.y > 4)) return photo_to_depth;
   // Correction C in depth space, T' = C * T, given by where it moves the 4
@@ -178,18 +198,46 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
     for (int i = 0; i < 4; ++i) moved[i] = box[i] + cv::Point2f(float(d[2 * i]), float(d[2 * i + 1]));
     return cv::Matx33d(cv::getPerspectiveTransform(box, moved));
   };
+  // Parameters: the 8 corner moves, then the lean's change (2, as the
+  // displacement of a roof at the reference height, depth px).
+  constexpr int kParams = 10;
+  // The lean needs outlines of several heights in view: with few, or of
+  // like heights, it is a translation with two more ways to fit noise.
+  bool lean_determined = false;
+  if (lean && has_heights_) {
+    int k = 0;
+    float h0 = std::numeric_limits<float>::infinity(), h1 = -h0;
+    for (float rh : region_h)
+      if (rh >= 0) ++k, h0 = std::min(h0, rh), h1 = std::max(h1, rh);
+    lean_determined = k >= opt_.min_lean_outlines && h1 - h0 >= opt_.min_lean_height_spread_m;
+  }
+  const bool with_lean = lean_determined && opt_.max_lean_px_per_m > 0;
+  auto lean_of = [&](const std::vector<double>& d) {
+    return with_lean ? lean0 + cv::Point2d(d[8], d[9]) * (1.0 / ref_height_) : lean0;
+  };
   double search = opt_.search_px;  // coarse: an edge anywhere in the window counts (wide basin)
   auto score = [&](const std::vector<double>& d) {
+    const cv::Point2d l = lean_of(d);
+    if (with_lean && std::hypot(l.x, l.y) > opt_.max_lean_px_per_m) return 0.0;
     const cv::Matx33d T = correction(d) * photo_to_depth;
     int m = 0;
-    const double v = OnEdge(S * T.inv(), 0, search, &m, support);
+    const double v = OnEdge(S * T.inv(), l, 0, search, &m, support);
     return m >= opt_.min_points ? v * std::min(1.0, double(m) / n) : 0.0;  // don't win by leaving the photo
   };
-  std::vector<double> d(8, 0.0);
+  std::vector<double> d(kParams, 0.0);
   double best = 0;
-  // similarity moves of the 4 corners: translation x/y, rotation, scale
+  // similarity moves of the 4 corners: translation x/y, rotation, scale;
+  // k = 4, 5: the lean (x, y)
   auto similarity_move = [&](int k, double step) {
-    std::vector<double> m(8, 0.0);
+    std::vector<double> m(kParams, 0.0);
+    if (k >= 4) {
+      // a lean change about the reference height: roofs of that height
+      // stay, lower and higher ones move apart (the fit before it has put
+      // the mean roof where it is; a lean move alone would shift them all)
+      m[size_t(8 + k - 4)] = step;
+      for (int i = 0; i < 4; ++i) m[size_t(2 * i + k - 4)] = step;
+      return m;
+    }
     for (int i = 0; i < 4; ++i) {
       const cv::Point2f r = box[i] - c;
       double dx = 0, dy = 0;
@@ -208,7 +256,7 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
         for (double sgn : {1.0, -1.0}) {
           const std::vector<double> m = move(k, sgn * step);
           std::vector<double> t = d;
-          for (int i = 0; i < 8; ++i) t[i] += m[i];
+          for (int i = 0; i < kParams; ++i) t[size_t(i)] += m[size_t(i)];
           const double v = score(t);
           if (v > best * (1 + 1e-4)) best = v, d = t, improved = true;
         }
@@ -216,7 +264,7 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
     }
   };
   auto corner_move = [](int k, double step) {
-    std::vector<double> m(8, 0.0);
+    std::vector<double> m(kParams, 0.0);
     m[k] = step;
     return m;
   };
@@ -228,6 +276,13 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
     best = score(d);
     const double first = stage_search > 0 ? 2.0 : 0.5, last = stage_search > 0 ? 0.5 : 0.125;
     ascend(4, similarity_move, first, last);
+    if (with_lean) {
+      // the lean must earn its keep: with like heights it is a translation
+      const std::vector<double> kept = d;
+      const double before = best;
+      ascend(6, similarity_move, first, last);
+      if (best < before * (1 + opt_.min_lean_gain)) d = kept, best = before;
+    }
     if (perspective && (stage_search == 0 || support)) {
       // the 8 parameters must earn their keep: few or bunched outlines let
       // them tilt the plane for a marginal gain
@@ -237,10 +292,12 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
       if (best < before * (1 + opt_.min_perspective_gain)) d = kept, best = before;
     }
   }
+  if (lean) *lean = lean_of(d);
   return correction(d) * photo_to_depth;
 }
 
-cv::Matx33d EdgeEvidence::RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective) const {
+cv::Matx33d EdgeEvidence::RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective,
+                                        cv::Point2d* lean) const {
   // the extent of all outlines
   cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
   for (const Sample& s : samples_)
@@ -250,7 +307,7 @@ cv::Matx33d EdgeEvidence::RefineOutward(const cv::Matx33d& photo_to_depth, const
   cv::Rect2d box = seed;
   for (int step = 0; step < 12; ++step) {
     const bool all = box.x <= lo.x && box.y <= lo.y && box.br().x >= hi.x && box.br().y >= hi.y;
-    T = Refine(T, perspective, /*sharp=*/all, all ? nullptr : &box);
+    T = Refine(T, perspective, /*sharp=*/all, all ? nullptr : &box, lean);
     if (all) break;
     const cv::Point2d c(box.x + box.width / 2, box.y + box.height / 2);
     const double gw = box.width * opt_.outward_growth, gh = box.height * opt_.outward_growth;

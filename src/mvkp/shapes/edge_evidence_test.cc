@@ -134,6 +134,47 @@ TEST(EdgeEvidence, RefineOutwardFixesExtrapolation) {
   EXPECT_GE(e.regions_on_edges, e.regions - 1);
 }
 
+// A conventional orthophoto: each roof shows h * lean from its footprint.
+// A transform fitted to the roofs carries the mean displacement; refining
+// with the heights recovers the lean and the ground mapping.
+TEST(EdgeEvidence, RefineEstimatesTheLeanOfAConventionalOrthophoto) {
+  const Scene s = MakeScene(11);
+  const cv::Point2d lean(0.30, -0.22);  // depth px per metre of height
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U(0, 1);
+  std::vector<float> heights;
+  std::vector<Contour> footprints;
+  double mean_h = 0;
+  for (const auto& roof : s.depth_outlines) {
+    const float h = float(5 + 35 * U(rng));
+    heights.push_back(h);
+    mean_h += h / double(s.depth_outlines.size());
+    Contour f;
+    for (const auto& q : roof) f.push_back(q - cv::Point2f(float(lean.x * h), float(lean.y * h)));
+    footprints.push_back(f);
+  }
+  // the roof fit: the ground mapping shifted by the mean roof displacement
+  const cv::Matx33d roof_fit = cv::Matx33d(1, 0, -mean_h * lean.x, 0, 1, -mean_h * lean.y, 0, 0, 1) * s.photo_to_depth;
+  ASSERT_GT(MaxCornerError(roof_fit, s.photo_to_depth), 4.0);
+  const EdgeEvidence ev(s.photo, 1.0, footprints, {}, heights);
+  ASSERT_TRUE(ev.has_heights());
+  // without the lean the refinement can only keep the mean roof
+  EXPECT_GT(MaxCornerError(ev.Refine(roof_fit, false), s.photo_to_depth), 3.0);
+  cv::Point2d est;
+  const cv::Matx33d refined = ev.Refine(roof_fit, false, true, nullptr, &est);
+  EXPECT_LT(MaxCornerError(refined, s.photo_to_depth), 1.0);
+  EXPECT_NEAR(est.x, lean.x, 0.03);
+  EXPECT_NEAR(est.y, lean.y, 0.03);
+  EXPECT_GT(ev.Evaluate(refined, est).contrast, ev.Evaluate(roof_fit).contrast);
+  // like heights: lean and translation are one move; no lean is claimed
+  const EdgeEvidence flat(s.photo, 1.0, s.depth_outlines, {}, std::vector<float>(s.depth_outlines.size(), 15.f));
+  cv::Point2d none;
+  flat.Refine(s.photo_to_depth, false, true, nullptr, &none);
+  EXPECT_EQ(none, cv::Point2d(0, 0));
+  // heights must be one per outline
+  EXPECT_THROW(EdgeEvidence(s.photo, 1.0, footprints, {}, std::vector<float>(3, 10.f)), Error);
+}
+
 TEST(EdgeEvidence, NoVerdictWhenTheOutlinesMissThePhoto) {
   const Scene s = MakeScene(6);
   const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);

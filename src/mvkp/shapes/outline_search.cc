@@ -513,6 +513,17 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     best.z = fine_score(best.T, field_for(s), &best.coverage);
   }
   res.photo_to_depth = best.T;
+  // The photo's lean (edge_evidence.h): the scores above are of the pose
+  // that puts the roofs on edges; the answer maps the ground.
+  if (evidence && evidence->Accepts(res.edge)) {  // never what makes an answer pass
+    cv::Point2d lean;
+    const cv::Matx33d T3 = evidence->Refine(best.T, o.perspective, true, nullptr, &lean);
+    if (lean != cv::Point2d() && PoseDistance(best.T, T3, probe) < o.distinct_px) {
+      const EdgeScore e = evidence->Evaluate(T3, lean);
+      if (evidence->Accepts(e) && e.regions_on_edges >= res.edge.regions_on_edges)
+        res.photo_to_depth = T3, res.lean_px_per_m = lean, res.edge = e;
+    }
+  }
   res.model = model;
   res.score = best.z;
   res.runner_up = runner;

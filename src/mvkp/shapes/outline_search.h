@@ -86,6 +86,7 @@ struct OutlineSearchResult {
   double coverage = 0;               // share of outline samples inside the photo at the answer
   int outlines_in_view = 0;          // outlines with >= 10 samples inside the photo at the answer
   EdgeScore edge;                    // image check at the answer (when evidence given)
+  cv::Point2d lean_px_per_m{0, 0};   // the photo's lean estimated by the final refinement (edge_evidence.h)
   int poses = 0;                     // (rotation, scale) pairs correlated
   double ms = 0;
 };

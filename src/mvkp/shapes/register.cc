@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <random>
 
 #include <opencv2/calib3d.hpp>
@@ -729,6 +730,8 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
         consistent && int(pairs.size()) >= opt.min_regions && ratio >= opt.min_inlier_ratio && f.rms <= max_rms;
     EdgeScore es;
     bool image_ok = false;
+    struct LeanAnswer { cv::Matx33d T; EdgeScore edge; cv::Point2d lean; };
+    std::optional<LeanAnswer> lean_answer;
     if (evidence) {
       es = evidence->Evaluate(f.T);
       // a right but imprecise fit (few region pairs) puts the outlines beside
@@ -769,6 +772,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       Corr cc = verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
       std::vector<cv::Point2f> dp;
       for (const auto& pq : cc) dp.push_back(pq.second);
+      const cv::Matx33d start_T = f.T;
       const cv::Matx33d T2 = dp.size() >= 3 ? evidence->RefineOutward(f.T, cv::boundingRect(dp), persp)
                                             : evidence->Refine(f.T, persp);
       if (persp && f.m != Model::kPerspective) f.m = Model::kPerspective;
@@ -788,6 +792,19 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       if (!evidence->Accepts(e))
         return cv::format("best consistent set's refined outlines are not on photo edges (contrast %.2f < %.2f)",
                           e.contrast, evidence->options().min_contrast);
+      // The photo's lean (edge_evidence.h), last: the checks judge the
+      // answer without it (two more parameters would also help a wrong
+      // set's outlines onto edges); it only moves an accepted answer from
+      // the mean roof to the ground. From where the lean-free refinement
+      // started: its result has put the mean roof on the edges, a basin
+      // the lean rarely leaves.
+      cv::Point2d lean;
+      const cv::Matx33d T3 = dp.size() >= 3 ? evidence->RefineOutward(start_T, cv::boundingRect(dp), persp, &lean)
+                                            : evidence->Refine(start_T, persp, true, nullptr, &lean);
+      if (lean != cv::Point2d()) {
+        const EdgeScore e3 = evidence->Evaluate(T3, lean);
+        if (evidence->Accepts(e3) && e3.regions_on_edges >= e.regions_on_edges) lean_answer = {T3, e3, lean};
+      }
     }
     // A nadir photo: the projective divisor changes little across it.
     if (opt.max_perspective > 0) {
@@ -799,6 +816,18 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     double scale, rot;
     if (!LocalScaleRotation(f.T, photo[pairs[0].first].centroid, &scale, &rot))
       return "refined transform is degenerate or reflecting";
+    // The lean answer replaces the accepted one if it passes the same
+    // checks. (Not "if it stays near it": the lean-free answer, fitted to
+    // the roofs, errs most far from them, where the two differ most.)
+    if (lean_answer) {
+      const cv::Matx33d& T3 = lean_answer->T;
+      double s3, r3;
+      if ((opt.max_perspective <= 0 || PerspectiveAmount(T3, photo_extent) <= opt.max_perspective) &&
+          LocalScaleRotation(T3, photo[pairs[0].first].centroid, &s3, &r3)) {
+        f.T = T3, res.edge = lean_answer->edge, res.lean_px_per_m = lean_answer->lean;
+        verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+      }
+    }
     res.ok = true;
     res.photo_to_depth = f.T;
     res.model = ModelName(f.m);

@@ -107,6 +107,9 @@ struct Registration {
   bool used_principal_directions = false;  // the restricted search produced the result
   double match_ms = 0, propagate_ms = 0;   // description + matching; hypotheses + refinement
   EdgeScore edge;                     // image evidence of the result (of the last candidate when !ok)
+  cv::Point2d lean_px_per_m{0, 0};    // the photo's lean (edge_evidence.h), depth px per metre of
+                                      //   height: roofs show this far from their footprints; the
+                                      //   transform maps the ground. Zero unless estimated.
 };
 
 // `evidence` (optional, not owned): the photo and all depth outlines (see
