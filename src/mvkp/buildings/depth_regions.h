@@ -92,6 +92,8 @@ struct DepthSegmentOptions {
   // Refinement and output.
   int refine_iterations = 2;    // majority-filling passes
   double min_area = 40;         // px; smaller regions are noise or unreliable
+  double min_width_px = 5;      // px; narrower regions (widest inscribed disc) are hedges or
+                                //   walls, not buildings (2.5 m at 0.5 m; 0: no check)
   double merge_corner_px = 3;   // duplicates: every bbox corner closer than this ...
   double merge_area_ratio = 0.05;  // ... and |area difference| <= this share of the larger
   bool skip_covered_markers = true;  // do not regrow from markers inside an earlier region

@@ -336,6 +336,25 @@ TEST(SegmentDepth, OneRoofHasOneRegionWithTheRightShape) {
   EXPECT_LT(SignedArea(r[0].contour), 0);
 }
 
+// Hedges pass the water level (2 m) in strips a few px wide; a shed 3 m
+// wide and a house are kept, the hedges are not, unless the check is off.
+TEST(SegmentDepth, NarrowStripsAreNotBuildings) {
+  cv::Mat1f d(160, 160, 100.f);
+  d(cv::Rect(20, 20, 40, 30)).setTo(107.f);    // house, 20 x 15 m
+  d(cv::Rect(100, 30, 6, 8)).setTo(102.8f);    // shed, 3 x 4 m
+  d(cv::Rect(20, 100, 90, 3)).setTo(102.2f);   // hedge, 1.5 m wide, 45 m long
+  d(cv::Rect(130, 60, 4, 80)).setTo(102.4f);   // hedge, 2 m wide
+  const std::vector<BuildingRegion> r = SegmentDepth(d);
+  ASSERT_EQ(r.size(), 2u);
+  EXPECT_EQ(r[0].bbox, cv::Rect(20, 20, 40, 30));
+  EXPECT_EQ(r[1].bbox, cv::Rect(100, 30, 6, 8));
+  DepthSegmentOptions all;
+  all.min_width_px = 0;
+  EXPECT_EQ(SegmentDepth(d, all).size(), 4u);
+  all.min_width_px = -1;
+  EXPECT_THROW(SegmentDepth(d, all), Error);
+}
+
 TEST(SegmentDepth, NothingStandingGivesNoRegions) {
   EXPECT_TRUE(SegmentDepth(cv::Mat1f(200, 200, 37.f)).empty());
   cv::Mat1f slope(200, 300);
