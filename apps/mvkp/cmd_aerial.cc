@@ -345,6 +345,9 @@ void RegisterRegister(CLI::App& app, int* code) {
               "also accept on region shapes alone when the image check fails (leaning orthophotos; "
               "can accept look-alike sets far off)");
   c->add_flag("!--no-edge-refine", a->opt.edge_refine, "keep the shape-fitted transform (no snapping onto photo edges)");
+  c->add_flag("!--no-single-pair", a->opt.single_pair_route,
+              "no single-pair route (one region pair's transform judged by the image check alone, when no "
+              "consistent set of region pairs passes)");
   c->add_option("--fbm", a->fbm, "fBm model file (mvkp ortho-models fit-fbm; default: fitted on the photo)");
   c->add_option("--lda", a->lda, "region LDA file (mvkp ortho-models train-lda; default: built in)");
   c->add_option("--photo-max-side", a->photo_max_side, "segment larger photos downscaled to this side (0: never)")

@@ -77,7 +77,7 @@ struct PyRegistration {
   Registration reg;
   std::vector<Contour> photo_regions, depth_regions;
   py::dict time_ms;
-  std::string method;       // register_aerial: "regions" | "outlines" ("" when not registered)
+  std::string method;       // register_aerial: "regions" | "single-pair" | "outlines" ("" when not registered)
   double confidence = 0;    // register_aerial: [0, 1] of the answer
 };
 
@@ -234,7 +234,7 @@ void BindAerial(py::module_& m) {
       .def_readonly("time_ms", &PyRegistration::time_ms)
       .def_property_readonly("method", [](const PyRegistration& r) -> py::object {
         return r.reg.ok && !r.method.empty() ? py::object(py::str(r.method)) : py::object(py::none());
-      }, "register_aerial: which method answered, 'regions' or 'outlines' (None when not registered)")
+      }, "register_aerial: which method answered, 'regions', 'single-pair' (one region pair's transform vouched for by the image check) or 'outlines' (None when not registered)")
       .def_readonly("confidence", &PyRegistration::confidence, "register_aerial: confidence of the answer in [0, 1] (0 when not registered)")
       .def_property_readonly("lean_depth_px_per_m", [](const PyRegistration& r) -> py::object {
         if (!r.reg.ok) return py::none();

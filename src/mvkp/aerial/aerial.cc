@@ -92,9 +92,13 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   if (regions) {
     out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,
                                         evidence ? &*evidence : nullptr);
-    out.method = "regions";
+    out.method = out.registration.route;  // "regions" | "single-pair"
     if (out.registration.ok) {
-      out.confidence = RegionConfidence(int(out.registration.region_matches.size()));
+      // the single-pair route's confidence is its own margin (register.h),
+      // not calibrated: one tuning answer came from it
+      out.confidence = out.registration.route == "single-pair"
+                           ? out.registration.route_confidence
+                           : RegionConfidence(int(out.registration.region_matches.size()));
       return out;
     }
   }

@@ -45,7 +45,7 @@ struct AerialRegistration {
   std::vector<Contour> photo_regions;  // in full-size photo px
   std::vector<Contour> depth_regions;  // depth px
   std::vector<double> photo_region_confidence;  // per photo region (ortho's confidence)
-  std::string method;                  // which method gave `registration`: "regions" | "outlines"
+  std::string method;                  // which method gave `registration`: "regions" | "single-pair" | "outlines"
   double confidence = 0;               // [0, 1] of the answer (see docs/aerial.md); 0 when !ok
   bool outline_search_ran = false;
   OutlineSearchResult outline;         // the outline search's own result, when it ran

@@ -107,14 +107,15 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
 
 double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offset_px, double search_px, int* points,
                             const cv::Rect2d* support, std::vector<double>* region_sum,
-                            std::vector<int>* region_count) const {
+                            std::vector<int>* region_count, int stride) const {
   const float w = float(grey_.cols), h = float(grey_.rows);
   double sum = 0;
   int count = 0;
   // a point is scored when the whole reference window (+-offset) fits, so
   // on and off are averaged over the same outline points
   const double reach = opt_.offset_px + opt_.search_px;
-  for (const Sample& s : samples_) {
+  for (size_t si = 0; si < samples_.size(); si += size_t(stride)) {
+    const Sample& s = samples_[si];
     if (support && !support->contains(cv::Point2d(s.q))) continue;
     const cv::Point2d q = cv::Point2d(s.q) + lean * double(s.h);
     const cv::Point2d p = Map(D, q);
@@ -144,18 +145,20 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offse
   return count ? sum / count : 0.0;
 }
 
-EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean) const {
+EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean, int stride) const {
+  Require(stride >= 1, ErrorCode::kInvalidArgument, "EdgeEvidence::Evaluate: stride must be >= 1");
   EdgeScore s;
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   const cv::Matx33d D = S * photo_to_depth.inv();
   int n0 = 0, n1 = 0, n2 = 0;
   std::vector<double> on_r(size_t(regions_), 0.0), off_r(size_t(regions_), 0.0);
   std::vector<int> n_on(size_t(regions_), 0), n_off(size_t(regions_), 0);
-  s.on = OnEdge(D, lean, 0, opt_.search_px, &n0, nullptr, &on_r, &n_on);
-  const double a = OnEdge(D, lean, -opt_.offset_px, opt_.search_px, &n1, nullptr, &off_r, &n_off);
-  const double b = OnEdge(D, lean, opt_.offset_px, opt_.search_px, &n2, nullptr, &off_r, &n_off);
+  s.on = OnEdge(D, lean, 0, opt_.search_px, &n0, nullptr, &on_r, &n_on, stride);
+  const double a = OnEdge(D, lean, -opt_.offset_px, opt_.search_px, &n1, nullptr, &off_r, &n_off, stride);
+  const double b = OnEdge(D, lean, opt_.offset_px, opt_.search_px, &n2, nullptr, &off_r, &n_off, stride);
+  n0 *= stride;  // counts as if every sample had been scored
   for (int r = 0; r < regions_; ++r) {
-    if (n_on[size_t(r)] < opt_.min_region_points) continue;
+    if (n_on[size_t(r)] * stride < opt_.min_region_points) continue;
     ++s.regions;
     const double on = on_r[size_t(r)] / n_on[size_t(r)], off = off_r[size_t(r)] / std::max(1, n_off[size_t(r)]);
     if (on >= opt_.min_region_contrast * std::max(off, 1e-6)) ++s.regions_on_edges;

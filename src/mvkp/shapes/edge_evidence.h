@@ -82,7 +82,9 @@ class EdgeEvidence {
                const EdgeEvidenceOptions& options = {}, const std::vector<float>& heights = {});
 
   // `lean`: depth px per metre of height (see above); zero for a true ortho.
-  EdgeScore Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean = {}) const;
+  // `stride` > 1 scores every stride-th outline sample only (a screening
+  // estimate, about stride times faster; counts are scaled back).
+  EdgeScore Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean = {}, int stride = 1) const;
   bool Accepts(const EdgeScore& s) const { return s.enough && s.contrast >= opt_.min_contrast; }
 
   // Local maximisation of the gradient across the outlines, sampled on them
@@ -119,7 +121,7 @@ class EdgeEvidence {
   };
   double OnEdge(const cv::Matx33d& depth_to_image, cv::Point2d lean, double offset_px, double search_px, int* points,
                 const cv::Rect2d* support = nullptr, std::vector<double>* region_sum = nullptr,
-                std::vector<int>* region_count = nullptr) const;
+                std::vector<int>* region_count = nullptr, int stride = 1) const;
 
   EdgeEvidenceOptions opt_;
   cv::Mat grey_;  // blurred photo, CV_32F

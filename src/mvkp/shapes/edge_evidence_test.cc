@@ -231,5 +231,28 @@ TEST(EdgeEvidence, RegistrationUsesTheImageCheck) {
   EXPECT_NE(r4.reason.find("image check"), std::string::npos) << r4.reason;
 }
 
+// A photo segmentation that found one roof: no consistent set of region
+// pairs exists, but that pair's transform puts all 14 depth outlines on the
+// photo's edges (the single-pair route). Without the photo's edges, or with
+// the route off, no answer.
+TEST(EdgeEvidence, SinglePairRouteRegistersOneRoofAmongManyOutlines) {
+  const Scene s = MakeScene(12);
+  const std::vector<Contour> one = {TransformPoints(s.photo_to_depth.inv(), s.depth_outlines[4])};
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+  const Registration r = RegisterContours(one, s.depth_outlines, {}, &ev);
+  ASSERT_TRUE(r.ok) << r.reason;
+  EXPECT_EQ(r.route, "single-pair");
+  EXPECT_GE(r.route_confidence, 0.5);
+  EXPECT_LT(MaxCornerError(r.photo_to_depth, s.photo_to_depth), 1.5);
+  EXPECT_GE(r.edge.regions_on_edges, 10);
+  RegistrationOptions off;
+  off.single_pair_route = false;
+  EXPECT_FALSE(RegisterContours(one, s.depth_outlines, off, &ev).ok);
+  const cv::Mat blank(s.photo.size(), CV_8UC3, cv::Scalar(120, 120, 120));
+  const EdgeEvidence flat(blank, 1.0, s.depth_outlines);
+  const Registration r2 = RegisterContours(one, s.depth_outlines, {}, &flat);
+  EXPECT_FALSE(r2.ok);
+}
+
 }  // namespace
 }  // namespace mvkp

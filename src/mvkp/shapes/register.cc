@@ -34,6 +34,10 @@ void RegistrationOptions::Check() const {
            min_inlier_ratio_with_evidence <= 1,
        "RegistrationOptions: min_inlier_ratio and min_inlier_ratio_with_evidence in [0, 1]");
   need(max_rms_px > 0, "RegistrationOptions.max_rms_px must be > 0");
+  need(single_pair_min_seed_contrast >= 0 && single_pair_distinct_px > 0 && single_pair_poses >= 2 &&
+           single_pair_min_outlines >= 3 && single_pair_min_on_edges >= 0 && single_pair_min_on_edges <= 1 &&
+           single_pair_min_confidence >= 0 && single_pair_min_confidence <= 1,
+       "RegistrationOptions: single_pair_* out of range");
   need(grow_tolerance >= 1 && grow_tolerance <= 4, "RegistrationOptions.grow_tolerance in [1, 4]");
   need(perspective_min_pairs >= 4, "RegistrationOptions.perspective_min_pairs must be >= 4");
   need(edge_rms_factor >= 1 && edge_rms_factor <= 10, "RegistrationOptions.edge_rms_factor in [1, 10]");
@@ -364,6 +368,24 @@ struct Hypothesis {
   double rank, cost;
 };
 
+// The similarity one region pair proposes (its descriptor points, aligned at
+// `shift`), if plausible: scale within the options' range, and the pair
+// itself aligned (RMS of the fit vs the depth region's size).
+bool SeedTransform(const Region& photo, const ShapeDescriptor& ddsc, int shift, const RegistrationOptions& opt,
+                   cv::Matx33d* T, double* scale, double* rot) {
+  const ShapeDescriptor& pdsc = photo.desc;
+  const int n = int(pdsc.points.size());
+  Corr seed;
+  for (int j = 0; j < n; ++j) seed.emplace_back(pdsc.points[j], ddsc.points[(j + shift) % n]);
+  if (!FitSimilarity(seed, T)) return false;
+  if (!LocalScaleRotation(*T, photo.centroid, scale, rot)) return false;
+  if (*scale < opt.min_scale || *scale > opt.max_scale) return false;
+  double ss = 0;
+  const Contour proj = TransformPoints(*T, pdsc.points);
+  for (int j = 0; j < n; ++j) ss += std::pow(cv::norm(proj[j] - seed[j].second), 2);
+  return std::sqrt(ss / n) <= 0.08 * ddsc.scale + opt.inlier_px;
+}
+
 }  // namespace
 
 // ---- principal directions (§7.2.4) ----------------------------------------
@@ -437,6 +459,122 @@ static double PerspectiveAmount(const cv::Matx33d& T, const cv::Rect2d& r) {
   return p;
 }
 
+// Largest distance, depth px, between where two transforms put the corners of `r`.
+static double PoseGap(const cv::Matx33d& A, const cv::Matx33d& B, const cv::Rect2d& r) {
+  double g = 0;
+  for (const double x : {r.x, r.x + r.width})
+    for (const double y : {r.y, r.y + r.height}) {
+      const Contour p = {cv::Point2f(float(x), float(y))};
+      g = std::max(g, double(cv::norm(TransformPoints(A, p)[0] - TransformPoints(B, p)[0])));
+    }
+  return g;
+}
+
+// The single-pair route (see RegistrationOptions::single_pair_route). Fills
+// *res and returns "" on success, else the reason.
+static std::string SinglePairRoute(const std::vector<Region>& photo, const std::vector<Region>& depth,
+                                   const std::vector<ShapeDescriptor>& ddesc, const std::vector<int>& ddesc_region,
+                                   const std::vector<Hypothesis>& hyps, const Verifier& verifier,
+                                   const RegistrationOptions& opt, const EdgeEvidence& ev, const cv::Rect2d& extent,
+                                   Registration* res) {
+  struct Pose {
+    cv::Matx33d T;
+    EdgeScore e;
+    size_t h = 0;
+    double z = 0;
+  };
+  // A layout, not a shape: many outlines in view, on edges. The score is
+  // the contrast's excess over random placement (1) weighted by the outline
+  // samples in view, so that a pose showing two outlines on strong edges
+  // does not beat one showing twenty on edges.
+  auto zscore = [&](const EdgeScore& e) {
+    return e.enough && e.regions >= opt.single_pair_min_outlines ? (e.contrast - 1.0) * std::sqrt(double(e.points)) : 0.0;
+  };
+  std::vector<Pose> poses;
+  int tried = 0;
+  for (size_t i = 0; i < hyps.size() && tried < opt.max_hypotheses; ++i) {
+    cv::Matx33d T;
+    double scale, rot;
+    if (!SeedTransform(photo[hyps[i].p], ddesc[hyps[i].dd], hyps[i].shift, opt, &T, &scale, &rot)) continue;
+    ++tried;
+    const EdgeScore e = ev.Evaluate(T, {}, 4);  // screening: every 4th outline sample
+    if (e.contrast >= opt.single_pair_min_seed_contrast && zscore(e) > 0) poses.push_back({T, e, i, zscore(e)});
+  }
+  if (poses.empty()) return "single-pair route: no region pair's transform puts outlines on photo edges";
+  std::stable_sort(poses.begin(), poses.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
+  const double distinct = opt.single_pair_distinct_px;
+  // the few best distinct poses, snapped onto the edges (similarity, coarse)
+  std::vector<Pose> top;
+  for (const Pose& q : poses) {
+    if (int(top.size()) >= opt.single_pair_poses) break;
+    bool same = false;
+    for (const Pose& t : top) same = same || PoseGap(q.T, t.T, extent) < distinct;
+    if (!same) top.push_back(q);
+  }
+  for (Pose& t : top) {
+    t.T = ev.Refine(t.T, false, /*sharp=*/false);
+    t.e = ev.Evaluate(t.T);
+    t.z = zscore(t.e);
+  }
+  std::stable_sort(top.begin(), top.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
+  const Pose& best = top[0];
+  double runner = 0;
+  for (size_t k = 1; k < top.size(); ++k)
+    if (PoseGap(top[k].T, best.T, extent) >= distinct) runner = std::max(runner, top[k].z);
+  const double c1 = best.e.contrast;
+  const double confidence = best.z > 0 ? std::clamp((best.z - runner) / best.z, 0.0, 1.0) : 0.0;
+  const EdgeScore& e1 = best.e;
+  const std::string what = cv::format("single-pair route: outline edge contrast %.2f, score %.1f, runner-up %.1f, "
+                                      "confidence %.2f, %d of %d outlines on edges",
+                                      c1, best.z, runner, confidence, e1.regions_on_edges, e1.regions);
+  // A layout, not a shape: many outlines in view, most of them on edges,
+  // and no other pose nearly as good.
+  if (!ev.Accepts(e1) || e1.regions < opt.single_pair_min_outlines ||
+      e1.regions_on_edges < opt.single_pair_min_on_edges * e1.regions || confidence < opt.single_pair_min_confidence)
+    return what;
+  const bool persp = opt.model == RegistrationOptions::Model::kPerspective || opt.model == RegistrationOptions::Model::kAuto;
+  cv::Matx33d T = ev.Refine(best.T, persp);
+  EdgeScore e = ev.Evaluate(T);
+  if (!ev.Accepts(e) || e.regions_on_edges < opt.single_pair_min_on_edges * e.regions)
+    return what + cv::format("; refined outlines not on edges (contrast %.2f, %d of %d)", e.contrast, e.regions_on_edges,
+                             e.regions);
+  if (opt.max_perspective > 0 && PerspectiveAmount(T, extent) > opt.max_perspective)
+    return what + "; needs a steep perspective";
+  double scale, rot;
+  if (!LocalScaleRotation(T, photo[hyps[best.h].p].centroid, &scale, &rot))
+    return what + "; refined transform is degenerate or reflecting";
+  // the lean, last, as on the region route
+  cv::Point2d lean;
+  const cv::Matx33d T3 = ev.Refine(best.T, persp, true, nullptr, &lean);
+  if (lean != cv::Point2d()) {
+    const EdgeScore e3 = ev.Evaluate(T3, lean);
+    double s3, r3;
+    if (ev.Accepts(e3) && e3.regions_on_edges >= e.regions_on_edges &&
+        (opt.max_perspective <= 0 || PerspectiveAmount(T3, extent) <= opt.max_perspective) &&
+        LocalScaleRotation(T3, photo[hyps[best.h].p].centroid, &s3, &r3))
+      T = T3, e = e3, res->lean_px_per_m = lean;
+  }
+  // region pairs consistent with the answer, for the correspondences
+  const double tol = opt.inlier_px * std::max(1.0, scale);
+  Evaluation pairs = verifier.Evaluate(T, tol);
+  if (pairs.pairs.empty()) pairs.pairs.emplace_back(hyps[best.h].p, ddesc_region[size_t(hyps[best.h].dd)]);
+  res->ok = true;
+  res->photo_to_depth = T;
+  res->model = persp ? "perspective" : "similarity";
+  res->edge = e;
+  res->route = "single-pair";
+  res->route_confidence = confidence;
+  res->correspondences = verifier.ClosestPoints(T, pairs.pairs, 2 * tol, &res->rms_px);
+  res->region_matches.clear();
+  for (const auto& [p, d] : pairs.pairs) {
+    RegionMatch m;
+    m.a = photo[size_t(p)].index, m.b = depth[size_t(d)].index;
+    res->region_matches.push_back(m);
+  }
+  res->reason = what + cv::format(", %d region pairs agree", int(pairs.pairs.size()));
+  return {};
+}
+
 Registration RegisterContours(const std::vector<Contour>& photo_regions, const std::vector<Contour>& depth_regions,
                               const RegistrationOptions& opt, const EdgeEvidence* evidence) {
   opt.Check();
@@ -465,7 +603,10 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   const int min_regions = evidence ? std::min(opt.min_regions, opt.min_regions_with_evidence) : opt.min_regions;
   const double min_inlier_ratio =
       evidence ? std::min(opt.min_inlier_ratio, opt.min_inlier_ratio_with_evidence) : opt.min_inlier_ratio;
-  if (int(std::min(photo.size(), depth.size())) < min_regions) {
+  // (the single-pair route needs one photo region, and outlines to judge it by)
+  const bool single_pair_possible =
+      evidence && opt.single_pair_route && int(depth.size()) >= opt.single_pair_min_outlines;
+  if (int(std::min(photo.size(), depth.size())) < min_regions && !single_pair_possible) {
     res.reason = "no registration found: fewer regions than min_regions (" + std::to_string(photo.size()) +
                  " photo, " + std::to_string(depth.size()) + " depth)";
     res.match_ms = timer.ElapsedMs();
@@ -598,22 +739,11 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       for (; next < hyps.size() && res.hypotheses < opt.max_hypotheses; ++next) {
         const Hypothesis& h = hyps[next];
         const int d = ddesc_region[h.dd];
-        const ShapeDescriptor& pdsc = photo[h.p].desc;
         const ShapeDescriptor& ddsc = ddesc[h.dd];
-        const int n = int(pdsc.points.size());
-        Corr seed;
-        for (int j = 0; j < n; ++j) seed.emplace_back(pdsc.points[j], ddsc.points[(j + h.shift) % n]);
         cv::Matx33d T;
-        if (!FitSimilarity(seed, &T)) continue;
         double scale, rot;
-        if (!LocalScaleRotation(T, photo[h.p].centroid, &scale, &rot)) continue;
-        if (scale < opt.min_scale || scale > opt.max_scale) continue;
+        if (!SeedTransform(photo[h.p], ddsc, h.shift, opt, &T, &scale, &rot)) continue;
         if (!allowed_rot.empty() && rotation_allowed(rot) != (pass == 0)) continue;
-        // the pair itself must align: RMS of the seed fit vs the depth region size
-        double ss = 0;
-        const Contour proj = TransformPoints(T, pdsc.points);
-        for (int j = 0; j < n; ++j) ss += std::pow(cv::norm(proj[j] - seed[j].second), 2);
-        if (std::sqrt(ss / n) > 0.08 * ddsc.scale + opt.inlier_px) continue;
         if (explained(h.p, d)) continue;  // already part of a kept consistent set
         ++res.hypotheses;
         // tolerances are in depth px; photo-side noise grows with the scale
@@ -866,6 +996,19 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       }
     }
     if (!more) break;
+  }
+  // 7. The single-pair route (issue 21): when no consistent set of region
+  // pairs passes (a photo segmentation that finds few roofs leaves one or
+  // two right pairs), each pair's own transform is judged by the image
+  // check alone: every depth outline in view must lie on photo edges.
+  if (evidence && opt.single_pair_route) {
+    const std::string single =
+        SinglePairRoute(photo, depth, ddesc, ddesc_region, hyps, verifier, opt, *evidence, photo_extent, &res);
+    if (single.empty()) {
+      res.propagate_ms = timer.ElapsedMs();
+      return res;
+    }
+    why = why.empty() ? single : why + "; " + single;
   }
   res.reason = "no registration found: " +
                (why.empty() ? cv::format("best hypothesis explains %d region pair(s) (need %d), ratio %.2f (need %.2f)",

@@ -85,6 +85,21 @@ struct RegistrationOptions {
   bool require_image_evidence = true; // with image evidence given: accept only through it (shapes
                                       //   alone gave answers 120-850 px off on towns of small
                                       //   look-alike houses); false: shapes alone may also accept
+  // The single-pair route (issue 21), with image evidence only: when no
+  // consistent set of region pairs passes, each region pair's own
+  // similarity is scored by the image check, z = (contrast - 1) *
+  // sqrt(outline samples in view); the best distinct pose is accepted as a
+  // layout: >= single_pair_min_outlines depth outlines in view,
+  // single_pair_min_on_edges of them on edges, and a margin over the best
+  // clearly different pose (confidence = (z1 - z2) / z1 >=
+  // single_pair_min_confidence).
+  bool single_pair_route = true;
+  double single_pair_min_seed_contrast = 1.2;  // a pair's raw transform must score this to be refined
+  int single_pair_poses = 8;                   // distinct poses refined and compared
+  double single_pair_distinct_px = 20;         // poses this far apart (depth px, photo corners) differ
+  int single_pair_min_outlines = 6;
+  double single_pair_min_on_edges = 0.5;
+  double single_pair_min_confidence = 0.5;
   bool use_principal_directions = false; // §7.2.4: try hypotheses whose rotation fits the
                                          //   principal directions first; falls back to all
   double principal_tolerance_deg = 12;   // allowed rotation deviation from a predicted one
@@ -107,6 +122,8 @@ struct Registration {
   bool used_principal_directions = false;  // the restricted search produced the result
   double match_ms = 0, propagate_ms = 0;   // description + matching; hypotheses + refinement
   EdgeScore edge;                     // image evidence of the result (of the last candidate when !ok)
+  std::string route = "regions";      // "regions" (a consistent set of region pairs) | "single-pair"
+  double route_confidence = 0;        // single-pair route: its margin confidence (see the options)
   cv::Point2d lean_px_per_m{0, 0};    // the photo's lean (edge_evidence.h), depth px per metre of
                                       //   height: roofs show this far from their footprints; the
                                       //   transform maps the ground. Zero unless estimated.
