@@ -345,6 +345,9 @@ void RegisterRegister(CLI::App& app, int* code) {
               "also accept on region shapes alone when the image check fails (leaning orthophotos; "
               "can accept look-alike sets far off)");
   c->add_flag("!--no-edge-refine", a->opt.edge_refine, "keep the shape-fitted transform (no snapping onto photo edges)");
+  c->add_flag_callback("--no-lean", [a] { a->edge.max_lean_px_per_m = 0; },
+                       "do not estimate the photo's lean (roofs displaced by height x lean in a conventional "
+                       "orthophoto); the answer then maps the mean roof");
   c->add_flag("!--no-single-pair", a->opt.single_pair_route,
               "no single-pair route (one region pair's transform judged by the image check alone, when no "
               "consistent set of region pairs passes)");

@@ -487,9 +487,8 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   // the contrast's excess over random placement (1) weighted by the outline
   // samples in view, so that a pose showing two outlines on strong edges
   // does not beat one showing twenty on edges.
-  auto zscore = [&](const EdgeScore& e) {
-    return e.enough && e.regions >= opt.single_pair_min_outlines ? (e.contrast - 1.0) * std::sqrt(double(e.points)) : 0.0;
-  };
+  auto zraw = [](const EdgeScore& e) { return e.enough ? (e.contrast - 1.0) * std::sqrt(double(e.points)) : 0.0; };
+  auto zscore = [&](const EdgeScore& e) { return e.regions >= opt.single_pair_min_outlines ? zraw(e) : 0.0; };
   std::vector<Pose> poses;
   int tried = 0;
   for (size_t i = 0; i < hyps.size() && tried < opt.max_hypotheses; ++i) {
@@ -498,7 +497,7 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
     if (!SeedTransform(photo[hyps[i].p], ddesc[hyps[i].dd], hyps[i].shift, opt, &T, &scale, &rot)) continue;
     ++tried;
     const EdgeScore e = ev.Evaluate(T, {}, 4);  // screening: every 4th outline sample
-    if (e.contrast >= opt.single_pair_min_seed_contrast && zscore(e) > 0) poses.push_back({T, e, i, zscore(e)});
+    if (e.contrast >= opt.single_pair_min_seed_contrast && zraw(e) > 0) poses.push_back({T, e, i, zraw(e)});
   }
   if (poses.empty()) return "single-pair route: no region pair's transform puts outlines on photo edges";
   std::stable_sort(poses.begin(), poses.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
@@ -514,13 +513,19 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   for (Pose& t : top) {
     t.T = ev.Refine(t.T, false, /*sharp=*/false);
     t.e = ev.Evaluate(t.T);
-    t.z = zscore(t.e);
+    t.z = zraw(t.e);
   }
-  std::stable_sort(top.begin(), top.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
-  const Pose& best = top[0];
-  double runner = 0;
+  // The answer: the best pose with enough outlines in view. Its rival: the
+  // best clearly different pose with any number (a pose that puts two
+  // outlines on strong edges is evidence that such edges are everywhere).
+  size_t bi = 0;
   for (size_t k = 1; k < top.size(); ++k)
-    if (PoseGap(top[k].T, best.T, extent) >= distinct) runner = std::max(runner, top[k].z);
+    if (zscore(top[k].e) > zscore(top[bi].e)) bi = k;
+  const Pose& best = top[bi];
+  double runner = 0;
+  for (size_t k = 0; k < top.size(); ++k)
+    if (k != bi && PoseGap(top[k].T, best.T, extent) >= distinct) runner = std::max(runner, top[k].z);
+  if (zscore(best.e) <= 0) return "single-pair route: no pose puts enough outlines in view on photo edges";
   const double c1 = best.e.contrast;
   const double confidence = best.z > 0 ? std::clamp((best.z - runner) / best.z, 0.0, 1.0) : 0.0;
   const EdgeScore& e1 = best.e;
@@ -1001,19 +1006,19 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
   // pairs passes (a photo segmentation that finds few roofs leaves one or
   // two right pairs), each pair's own transform is judged by the image
   // check alone: every depth outline in view must lie on photo edges.
-  if (evidence && opt.single_pair_route) {
+  if (why.empty())
+    why = cv::format("best hypothesis explains %d region pair(s) (need %d), ratio %.2f (need %.2f)", best_count,
+                     min_regions, best_ratio, min_inlier_ratio);
+  if (single_pair_possible) {
     const std::string single =
         SinglePairRoute(photo, depth, ddesc, ddesc_region, hyps, verifier, opt, *evidence, photo_extent, &res);
     if (single.empty()) {
       res.propagate_ms = timer.ElapsedMs();
       return res;
     }
-    why = why.empty() ? single : why + "; " + single;
+    why += "; " + single;
   }
-  res.reason = "no registration found: " +
-               (why.empty() ? cv::format("best hypothesis explains %d region pair(s) (need %d), ratio %.2f (need %.2f)",
-                                         best_count, min_regions, best_ratio, min_inlier_ratio)
-                            : why);
+  res.reason = "no registration found: " + why;
   res.propagate_ms = timer.ElapsedMs();
   return res;
 }

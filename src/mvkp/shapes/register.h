@@ -91,13 +91,13 @@ struct RegistrationOptions {
   // sqrt(outline samples in view); the best distinct pose is accepted as a
   // layout: >= single_pair_min_outlines depth outlines in view,
   // single_pair_min_on_edges of them on edges, and a margin over the best
-  // clearly different pose (confidence = (z1 - z2) / z1 >=
-  // single_pair_min_confidence).
+  // clearly different pose, whatever its outlines in view (confidence =
+  // (z1 - z2) / z1 >= single_pair_min_confidence).
   bool single_pair_route = true;
   double single_pair_min_seed_contrast = 1.2;  // a pair's raw transform must score this to be refined
   int single_pair_poses = 8;                   // distinct poses refined and compared
   double single_pair_distinct_px = 20;         // poses this far apart (depth px, photo corners) differ
-  int single_pair_min_outlines = 6;
+  int single_pair_min_outlines = 8;
   double single_pair_min_on_edges = 0.5;
   double single_pair_min_confidence = 0.5;
   bool use_principal_directions = false; // §7.2.4: try hypotheses whose rotation fits the
