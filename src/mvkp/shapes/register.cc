@@ -470,6 +470,20 @@ static double PoseGap(const cv::Matx33d& A, const cv::Matx33d& B, const cv::Rect
   return g;
 }
 
+// An answer refined with the photo's lean (T3, lean) replaces the accepted
+// one, whose image check gave `accepted`, when it passes the same checks:
+// outlines on edges (no fewer), the perspective bound, a proper transform
+// at `at`. Its image check goes to *e3.
+static bool LeanAnswerPasses(const EdgeEvidence& ev, const cv::Matx33d& T3, cv::Point2d lean, const EdgeScore& accepted,
+                             const RegistrationOptions& opt, const cv::Rect2d& extent, cv::Point2f at, EdgeScore* e3) {
+  if (lean == cv::Point2d()) return false;
+  *e3 = ev.Evaluate(T3, lean);
+  double scale, rot;
+  return ev.Accepts(*e3) && e3->regions_on_edges >= accepted.regions_on_edges &&
+         (opt.max_perspective <= 0 || PerspectiveAmount(T3, extent) <= opt.max_perspective) &&
+         LocalScaleRotation(T3, at, &scale, &rot);
+}
+
 // The single-pair route (see RegistrationOptions::single_pair_route). Fills
 // *res and returns "" on success, else the reason.
 static std::string SinglePairRoute(const std::vector<Region>& photo, const std::vector<Region>& depth,
@@ -551,14 +565,9 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   // the lean, last, as on the region route
   cv::Point2d lean;
   const cv::Matx33d T3 = ev.Refine(best.T, persp, true, nullptr, &lean);
-  if (lean != cv::Point2d()) {
-    const EdgeScore e3 = ev.Evaluate(T3, lean);
-    double s3, r3;
-    if (ev.Accepts(e3) && e3.regions_on_edges >= e.regions_on_edges &&
-        (opt.max_perspective <= 0 || PerspectiveAmount(T3, extent) <= opt.max_perspective) &&
-        LocalScaleRotation(T3, photo[hyps[best.h].p].centroid, &s3, &r3))
-      T = T3, e = e3, res->lean_px_per_m = lean;
-  }
+  EdgeScore e3;
+  if (LeanAnswerPasses(ev, T3, lean, e, opt, extent, photo[hyps[best.h].p].centroid, &e3))
+    T = T3, e = e3, res->lean_px_per_m = lean;
   // region pairs consistent with the answer, for the correspondences
   const double tol = opt.inlier_px * std::max(1.0, scale);
   Evaluation pairs = verifier.Evaluate(T, tol);
@@ -865,7 +874,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
         consistent && int(pairs.size()) >= opt.min_regions && ratio >= opt.min_inlier_ratio && f.rms <= max_rms;
     EdgeScore es;
     bool image_ok = false;
-    struct LeanAnswer { cv::Matx33d T; EdgeScore edge; cv::Point2d lean; };
+    struct LeanAnswer { cv::Matx33d T; cv::Point2d lean; };
     std::optional<LeanAnswer> lean_answer;
     if (evidence) {
       es = evidence->Evaluate(f.T);
@@ -936,10 +945,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       cv::Point2d lean;
       const cv::Matx33d T3 = dp.size() >= 3 ? evidence->RefineOutward(start_T, cv::boundingRect(dp), persp, &lean)
                                             : evidence->Refine(start_T, persp, true, nullptr, &lean);
-      if (lean != cv::Point2d()) {
-        const EdgeScore e3 = evidence->Evaluate(T3, lean);
-        if (evidence->Accepts(e3) && e3.regions_on_edges >= e.regions_on_edges) lean_answer = {T3, e3, lean};
-      }
+      lean_answer = LeanAnswer{T3, lean};
     }
     // A nadir photo: the projective divisor changes little across it.
     if (opt.max_perspective > 0) {
@@ -954,14 +960,11 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     // The lean answer replaces the accepted one if it passes the same
     // checks. (Not "if it stays near it": the lean-free answer, fitted to
     // the roofs, errs most far from them, where the two differ most.)
-    if (lean_answer) {
-      const cv::Matx33d& T3 = lean_answer->T;
-      double s3, r3;
-      if ((opt.max_perspective <= 0 || PerspectiveAmount(T3, photo_extent) <= opt.max_perspective) &&
-          LocalScaleRotation(T3, photo[pairs[0].first].centroid, &s3, &r3)) {
-        f.T = T3, res.edge = lean_answer->edge, res.lean_px_per_m = lean_answer->lean;
-        verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
-      }
+    EdgeScore e3;
+    if (lean_answer && LeanAnswerPasses(*evidence, lean_answer->T, lean_answer->lean, res.edge, opt, photo_extent,
+                                        photo[pairs[0].first].centroid, &e3)) {
+      f.T = lean_answer->T, res.edge = e3, res.lean_px_per_m = lean_answer->lean;
+      verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
     }
     res.ok = true;
     res.photo_to_depth = f.T;
