@@ -23,6 +23,7 @@ void RegisterQuality(CLI::App& app, int* exit_code);
 void RegisterDb(CLI::App& app, int* exit_code);
 void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterSynthCity(CLI::App& app, int* exit_code);
+void RegisterSynthOblique(CLI::App& app, int* exit_code);
 void RegisterSegment(CLI::App& app, int* exit_code);
 void RegisterRegister(CLI::App& app, int* exit_code);
 void RegisterOrthoModels(CLI::App& app, int* exit_code);
