@@ -177,4 +177,25 @@ expect_fail "depth with no data anywhere" "no data" "$MVKP" segment depth "$T/na
 expect_fail "LAS header claiming 10^9 points" "huge.las" "$MVKP" segment depth "$T/huge.las"
 expect_fail "synth-city --n 0" "--n" "$MVKP" synth-city -o "$T/z" --n 0
 
+# synth-oblique (issue 22): a city with two oblique views and their ground truth;
+# the camera reprojects every check point to its oblique pixel, and a nadir
+# pixel lifted through the truth lands on its world point for open ground.
+expect_ok "synth-oblique: 1 city, 2 views" "$MVKP" synth-oblique -o "$T/o" --n 1 --views 2 --seed 3 --style dense \
+  --width 480 --height 360
+check "synth-oblique: views and truth written" test -s "$T/o/city_0000/oblique_00.png" -a -s "$T/o/city_0000/oblique_01.json" \
+  -a -s "$T/o/city_0000/truth.json"
+check "synth-oblique: camera reprojects the check points" "$PY" - "$T/o/city_0000/oblique_00.json" <<'PYEOF'
+import json, sys
+import numpy as np
+v = json.load(open(sys.argv[1]))
+P = np.array(v["camera"])
+cps = v["check_points"]
+assert len(cps) >= 20, len(cps)
+X = np.array([c["world_m"] + [1] for c in cps]) @ P.T
+err = np.abs(X[:, :2] / X[:, 2:] - np.array([c["oblique_px"] for c in cps])).max()
+assert err < 1e-6, err
+assert 30 <= v["options"]["tilt_deg"] <= 60
+PYEOF
+expect_fail "synth-oblique --tilt 80 90" "--tilt" "$MVKP" synth-oblique -o "$T/oz" --tilt 80 90
+
 cli_finish

@@ -71,7 +71,7 @@ struct Surface {
   float hmax = 0, hmin = 0;
   // bilinear height at world (x, y) metres
   float At(double x, double y) const {
-    double c = x / res, r = y / res;
+    double c = x / res, r = -y / res;  // east, north -> column, row
     const cv::Mat1f* m = &h;
     if (c < 0 || r < 0 || c > h.cols - 1 || r > h.rows - 1) {
       c = std::clamp(c, 0.0, double(h.cols - 1)), r = std::clamp(r, 0.0, double(h.rows - 1));
@@ -159,11 +159,13 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
     const cv::Vec3d c = city.photo_to_depth * cv::Vec3d((city.photo.cols - 1) / 2.0, (city.photo.rows - 1) / 2.0, 1);
     target = {c[0] / c[2], c[1] / c[2]};
   }
-  const cv::Vec3d G(target.x * res, target.y * res, s.At(target.x * res, target.y * res));
+  const cv::Vec3d G(target.x * res, -target.y * res, s.At(target.x * res, -target.y * res));
   const double tilt = o.tilt_deg * kPi / 180, az = o.azimuth_deg * kPi / 180;
-  const cv::Vec3d look(std::sin(tilt) * std::sin(az), -std::sin(tilt) * std::cos(az), -std::cos(tilt));
-  const cv::Vec3d right(std::cos(az), std::sin(az), 0);
-  const cv::Vec3d down = right.cross(look);
+  // camera axes in the world (east, north, up): x right, y down, z along
+  // the view, a proper rotation (right x down = look)
+  const cv::Vec3d look(std::sin(tilt) * std::sin(az), std::sin(tilt) * std::cos(az), -std::cos(tilt));
+  const cv::Vec3d right(std::cos(az), -std::sin(az), 0);
+  const cv::Vec3d down = look.cross(right);
   const double f = (o.width / 2.0) / std::tan(o.hfov_deg * kPi / 360);
   const double dist = o.gsd_m * f;
   v.centre_m = G - dist * look;
@@ -181,19 +183,19 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
   const cv::Matx33d Kinv = v.K.inv();
   const cv::Matx33d Rt_inv = v.R.t();
 
-  // the sun, toward it (x east, y south, z up)
+  // the sun, toward it (east, north, up)
   const double saz = city.sun_azimuth_deg * kPi / 180, sel = city.sun_elevation_deg * kPi / 180;
-  const cv::Vec3d sun(std::sin(saz) * std::cos(sel), -std::cos(saz) * std::cos(sel), std::sin(sel));
+  const cv::Vec3d sun(std::sin(saz) * std::cos(sel), std::cos(saz) * std::cos(sel), std::sin(sel));
   const cv::Point2d lean_px = city.lean * (1.0 / res);  // depth px per metre of height
 
   auto nadir_px = [&](const cv::Vec3d& X) {
     const double h = std::max(0.0, X[2] - double(ground.At(X[0], X[1])));
-    const cv::Point2d q(X[0] / res + lean_px.x * h, X[1] / res + lean_px.y * h);
+    const cv::Point2d q(X[0] / res + lean_px.x * h, -X[1] / res + lean_px.y * h);
     const cv::Vec3d p = depth_to_photo * cv::Vec3d(q.x, q.y, 1);
     return cv::Point2d(p[0] / p[2], p[1] / p[2]);
   };
   auto building_at = [&](double x, double y) {
-    const int c = int(std::lround(x / res)), r = int(std::lround(y / res));
+    const int c = int(std::lround(x / res)), r = int(std::lround(-y / res));
     if (c < 0 || r < 0 || c >= city.building_id.cols || r >= city.building_id.rows) return -1;
     return city.building_id(r, c);
   };
@@ -280,9 +282,9 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
       cv::Point2d in = c - cv::Point2d(p);
       in *= 1.5 / std::max(1e-6, std::hypot(in.x, in.y));
       // the roof just inside the corner (not a concave corner's outside)
-      if (building_at((p.x + in.x) * res, (p.y + in.y) * res) != int(b)) continue;
-      const double z = s.At((p.x + in.x) * res, (p.y + in.y) * res);
-      cand.emplace_back(cv::Vec3d(p.x * res, p.y * res, z), int(b));
+      if (building_at((p.x + in.x) * res, -(p.y + in.y) * res) != int(b)) continue;
+      const double z = s.At((p.x + in.x) * res, -(p.y + in.y) * res);
+      cand.emplace_back(cv::Vec3d(p.x * res, -p.y * res, z), int(b));
     }
   }
   for (int k = 0, tries = 0; k < o.check_points && tries < 20 * o.check_points; ++tries) {
@@ -293,7 +295,7 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
         open = city.building_id(r + dy, c + dx) < 0 && (city.tree_mask.empty() || !city.tree_mask(r + dy, c + dx)) &&
                std::isfinite(city.depth(r + dy, c + dx));
     if (!open) continue;
-    cand.emplace_back(cv::Vec3d(c * res, r * res, s.At(c * res, r * res)), -1);
+    cand.emplace_back(cv::Vec3d(c * res, -r * res, s.At(c * res, -r * res)), -1);
     ++k;
   }
   for (const auto& [X, b] : cand) {
@@ -310,7 +312,7 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
     if (!Intersect(s, v.centre_m, d, &hit) || cv::norm(hit - X) > 0.75) continue;  // hidden
     ObliqueCheckPoint cp;
     cp.world = {X[0], X[1], X[2]};
-    cp.depth_px = {X[0] / res, X[1] / res};
+    cp.depth_px = {X[0] / res, -X[1] / res};
     cp.nadir_px = np;
     cp.oblique_px = px;
     cp.building = b;
@@ -346,8 +348,8 @@ void SaveOblique(const ObliqueView& v, const std::string& dir, const std::string
   j["image"] = stem + ".png";
   j["seed"] = v.seed;
   j["camera"] = mat(v.camera, 3, 4);
-  j["camera_note"] = "3x4, world metres (x = depth column * res_m, y = depth row * res_m, z = DSM height) -> "
-                     "oblique pixel, pixel centres at integers";
+  j["camera_note"] = "3x4, world metres east-north-up (x = depth column * res_m, y = -depth row * res_m, z = DSM "
+                     "height) -> oblique pixel, pixel centres at integers";
   j["K"] = mat(v.K, 3, 3);
   j["R"] = mat(v.R, 3, 3);
   j["centre_m"] = {v.centre_m[0], v.centre_m[1], v.centre_m[2]};

@@ -16,9 +16,10 @@
 // pixels and check points (roof corners, open ground) that the camera sees,
 // each with its depth, nadir-photo and oblique pixel.
 //
-// World frame: x = depth column * res_m, y = depth row * res_m (south), z =
-// the DSM's height in metres (up). Depth pixel centres are at integers, as
-// in synth_city.h; pixel (c, r) is world (c * res, r * res).
+// World frame: east, north, up (right-handed, so that the camera is a proper
+// rotation and PnP can recover it): x = depth column * res_m, y = -depth row
+// * res_m, z = the DSM's height in metres. Depth pixel centres are at
+// integers, as in synth_city.h; pixel (c, r) is world (c * res, -r * res).
 #pragma once
 
 #include <cstdint>
@@ -48,7 +49,7 @@ struct ObliqueOptions {
 
 struct ObliqueCheckPoint {
   cv::Point3d world;      // metres
-  cv::Point2d depth_px;   // (x, y) / res_m
+  cv::Point2d depth_px;   // (x, -y) / res_m
   cv::Point2d nadir_px;   // where the nadir photo shows it (its lean included)
   cv::Point2d oblique_px; // camera * world
   int building = -1;      // roof corner of this building; -1: open ground

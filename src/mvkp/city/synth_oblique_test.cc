@@ -45,6 +45,7 @@ TEST(SynthOblique, CameraMatrixAgreesWithTheRendering) {
         const cv::Vec3d p = v.camera * cv::Vec4d(c.world.x, c.world.y, c.world.z, 1);
         EXPECT_NEAR(p[0] / p[2], c.oblique_px.x, 1e-6);
         EXPECT_NEAR(c.depth_px.x, c.world.x / res, 1e-9);
+        EXPECT_NEAR(c.depth_px.y, -c.world.y / res, 1e-9);
         if (c.building < 0) {
           ++ground;
           continue;
@@ -62,8 +63,9 @@ TEST(SynthOblique, CameraMatrixAgreesWithTheRendering) {
       EXPECT_GE(roofs, 4) << style << " tilt " << tilt;
       EXPECT_GE(ground, 20) << style << " tilt " << tilt;
       EXPECT_GE(on_own, roofs * 9 / 10) << style << " tilt " << tilt;
-      // the camera looks down at the asked tilt
+      // the camera looks down at the asked tilt, and is a proper rotation
       EXPECT_NEAR(std::acos(-v.R(2, 2)) * 180 / CV_PI, tilt, 1e-6);
+      EXPECT_NEAR(cv::determinant(cv::Mat(v.R)), 1.0, 1e-9);
     }
   }
 }
