@@ -19,7 +19,9 @@ table isolates stage 2; `--stage1 mvkp` runs `mvkp register` instead.
 
 Methods: sift-h, orb-h (OpenCV, ratio test + RANSAC homography), sift-pnp,
 mvkp-h (`mvkp pair NADIR OBLIQUE --json`, its homography), mvkp-pnp (its
-verified correspondences lifted and solved by PnP).
+verified correspondences lifted and solved by PnP here), mvkp-view (the
+product: `mvkp register-view DEPTH NADIR STAGE1 OBLIQUE --json`, stage 1 as
+--stage1 says).
 
     scripts/oblique_eval.py --mvkp build/mvkp --out out/oblique --style dense --seed 1 --n 4 --views 4
 """
@@ -158,7 +160,10 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--n", type=int, default=4, help="cities")
     ap.add_argument("--views", type=int, default=4, help="oblique views per city")
-    ap.add_argument("--methods", default="sift-h,orb-h,sift-pnp,mvkp-h,mvkp-pnp")
+    ap.add_argument("--methods", default="sift-h,orb-h,sift-pnp,mvkp-h,mvkp-pnp,mvkp-view")
+    ap.add_argument("--stage1", choices=["truth", "mvkp"], default="truth",
+                    help="stage 1 for mvkp-view: the city's truth, or mvkp register's answer (views of cities it "
+                         "does not register get none)")
     ap.add_argument("--reuse", action="store_true", help="score views already in --out")
     a = ap.parse_args()
     methods = [m.strip() for m in a.methods.split(",") if m.strip()]
@@ -172,6 +177,17 @@ def main():
         city = City(cdir)
         nadir_path = os.path.join(cdir, "photo.png")
         nadir = cv2.imread(nadir_path, cv2.IMREAD_GRAYSCALE)
+        stage1 = os.path.join(cdir, "stage1_%s.json" % a.stage1)
+        if "mvkp-view" in methods and not os.path.exists(stage1):
+            if a.stage1 == "truth":
+                t = city.truth
+                json.dump({"homography": t["photo_to_depth"], "lean_depth_px_per_m": city.lean_px.tolist(),
+                           "depth": {"size": t["depth_size"], "res_m": t["res_m"]},
+                           "photo": {"size": t["photo_size"]}}, open(stage1, "w"))
+            else:
+                r = subprocess.run([a.mvkp, "register", os.path.join(cdir, "depth.tif"), nadir_path, "--json"],
+                                   capture_output=True, text=True)
+                open(stage1, "w").write(r.stdout)
         for vj in sorted(f for f in os.listdir(cdir) if f.startswith("oblique_") and f.endswith(".json")):
             v = json.load(open(os.path.join(cdir, vj)))
             opath = os.path.join(cdir, v["image"])
@@ -218,6 +234,15 @@ def main():
                     else:
                         P = pnp(city, K, pa, pb)
                         err = None if P is None else float(np.linalg.norm(project(P, Xw) - opx, axis=1).mean())
+                elif m == "mvkp-view":
+                    r = subprocess.run([a.mvkp, "register-view", os.path.join(cdir, "depth.tif"), nadir_path, stage1,
+                                        opath, "--json", "--res", str(city.res)], capture_output=True, text=True)
+                    try:
+                        j = json.loads(r.stdout)
+                    except ValueError:
+                        j = {"camera": None}  # stage 1 gave no registration: no answer
+                    if j.get("camera"):
+                        err = float(np.linalg.norm(project(np.array(j["camera"]), Xw) - opx, axis=1).mean())
                 row[m] = {"error_px": err, "ms": (time.perf_counter() - t0) * 1000}
             rows.append(row)
             print(json.dumps({"view": row["view"], "tilt": round(row["tilt"], 1),

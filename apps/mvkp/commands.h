@@ -24,6 +24,7 @@ void RegisterDb(CLI::App& app, int* exit_code);
 void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterSynthCity(CLI::App& app, int* exit_code);
 void RegisterSynthOblique(CLI::App& app, int* exit_code);
+void RegisterRegisterView(CLI::App& app, int* exit_code);
 void RegisterSegment(CLI::App& app, int* exit_code);
 void RegisterRegister(CLI::App& app, int* exit_code);
 void RegisterOrthoModels(CLI::App& app, int* exit_code);

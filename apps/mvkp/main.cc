@@ -76,6 +76,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterVideo(app, &code);
   mvkp::cli::RegisterSynthCity(app, &code);
   mvkp::cli::RegisterSynthOblique(app, &code);
+  mvkp::cli::RegisterRegisterView(app, &code);
   mvkp::cli::RegisterSegment(app, &code);
   mvkp::cli::RegisterRegister(app, &code);
   mvkp::cli::RegisterOrthoModels(app, &code);

@@ -1,0 +1,165 @@
+#include "mvkp/oblique/view_pose.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mvkp/core/error.h"
+
+namespace mvkp {
+
+void ViewPoseOptions::Check() const {
+  Require(ransac_px > 0 && iterations >= 100 && min_inliers >= 6 && min_inlier_ratio >= 0 && min_inlier_ratio <= 1,
+          ErrorCode::kInvalidArgument,
+          "ViewPoseOptions: ransac_px > 0, iterations >= 100, min_inliers >= 6, min_inlier_ratio in [0, 1]");
+}
+
+NadirLifter::NadirLifter(const cv::Mat1f& depth, double res_m, const cv::Matx33d& nadir_to_depth,
+                         cv::Point2d lean_px_per_m, double terrain_window_m)
+    : res_(res_m), H_(nadir_to_depth), lean_(lean_px_per_m) {
+  Require(!depth.empty() && res_m > 0 && std::isfinite(res_m), ErrorCode::kInvalidArgument,
+          "NadirLifter: need a depth raster and res_m > 0");
+  Require(std::isfinite(lean_.x) && std::isfinite(lean_.y) && cv::norm(lean_) < 10, ErrorCode::kInvalidArgument,
+          "NadirLifter: the lean must be finite (depth px per metre)");
+  Require(std::abs(cv::determinant(cv::Mat(H_))) > 1e-12, ErrorCode::kInvalidArgument,
+          "NadirLifter: the nadir -> depth homography is singular");
+  // gaps: the median of the returns (only for lookups; rare)
+  std::vector<float> v;
+  for (int y = 0; y < depth.rows; y += 4)
+    for (int x = 0; x < depth.cols; x += 4)
+      if (std::isfinite(depth(y, x))) v.push_back(depth(y, x));
+  Require(!v.empty(), ErrorCode::kInvalidArgument, "NadirLifter: the depth raster has no data");
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  const float fill = v[v.size() / 2];
+  dsm_ = depth.clone();
+  cv::Mat1f high = depth.clone();  // gaps high, so that the opening ignores them
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x)
+      if (!std::isfinite(depth(y, x))) dsm_(y, x) = fill, high(y, x) = 1e4f;
+  const int k = std::max(3, int(std::lround(terrain_window_m / res_m)) | 1);
+  cv::Mat1f terrain;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+  cv::morphologyEx(high, terrain, cv::MORPH_OPEN, kernel);
+  for (float& t : terrain) if (t > 5e3f) t = fill;
+  cv::GaussianBlur(terrain, terrain, cv::Size(), std::max(1.0, k / 6.0));
+  above_ = dsm_ - terrain;
+  for (float& a : above_) a = std::max(0.f, a);
+  double mx = 0;
+  cv::minMaxLoc(above_, nullptr, &mx);
+  max_above_ = float(std::min(mx, 300.0));
+  std::vector<float> g(terrain.begin(), terrain.end());
+  std::nth_element(g.begin(), g.begin() + g.size() / 2, g.end());
+  ground_z_ = g[g.size() / 2];
+}
+
+bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const {
+  const cv::Vec3d h = H_ * cv::Vec3d(p.x, p.y, 1);
+  if (!(std::abs(h[2]) > 1e-12)) return false;
+  const cv::Point2d q0(h[0] / h[2], h[1] / h[2]);
+  const int w = dsm_.cols, hh = dsm_.rows;
+  auto cell = [&](cv::Point2d q) {
+    return cv::Point(std::clamp(int(std::lround(q.x)), 0, w - 1), std::clamp(int(std::lround(q.y)), 0, hh - 1));
+  };
+  double t = 0;
+  if (cv::norm(lean_) > 1e-9) {
+    // down the lean from the highest point: the first surface at least t up
+    for (double s = max_above_; s > 0; s -= 0.25) {
+      const cv::Point c = cell(q0 - lean_ * s);
+      if (above_(c) >= s) {
+        t = s;
+        break;
+      }
+    }
+  }
+  const cv::Point2d q = q0 - lean_ * t;
+  if (q.x < 0 || q.y < 0 || q.x > w - 1 || q.y > hh - 1) return false;
+  *world = cv::Point3d(q.x * res_, -q.y * res_, dsm_(cell(q)));
+  return true;
+}
+
+ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vector<cv::Point2d>& pixels,
+                          const cv::Matx33d& K, const ViewPoseOptions& o) {
+  o.Check();
+  Require(world.size() == pixels.size(), ErrorCode::kInvalidArgument,
+          "EstimateViewPose: world and pixels must have the same size");
+  ViewPose r;
+  r.matches = int(world.size());
+  r.inlier.assign(world.size(), 0);
+  if (r.matches < o.min_inliers) {
+    r.reason = cv::format("%d matches lift into the depth raster (need %d)", r.matches, o.min_inliers);
+    return r;
+  }
+  // centre the world points: PnP on coordinates of hundreds of metres loses digits
+  cv::Point3d c0(0, 0, 0);
+  for (const auto& X : world) c0 += X;
+  c0 *= 1.0 / double(world.size());
+  std::vector<cv::Point3d> Xc;
+  for (const auto& X : world) Xc.push_back(X - c0);
+  cv::Mat rvec, tvec;
+  std::vector<int> inl;
+  cv::setRNGSeed(1);  // deterministic RANSAC
+  const bool found = cv::solvePnPRansac(Xc, pixels, cv::Mat(K), cv::noArray(), rvec, tvec, false, o.iterations,
+                                        float(o.ransac_px), 0.9999, inl, cv::SOLVEPNP_AP3P);
+  if (!found || int(inl.size()) < o.min_inliers) {
+    r.reason = cv::format("no camera: %d of %d pairs agree (need %d)", int(inl.size()), r.matches, o.min_inliers);
+    return r;
+  }
+  std::vector<cv::Point3d> Xi;
+  std::vector<cv::Point2d> pi;
+  for (int i : inl) Xi.push_back(Xc[size_t(i)]), pi.push_back(pixels[size_t(i)]);
+  cv::solvePnPRefineLM(Xi, pi, cv::Mat(K), cv::noArray(), rvec, tvec);
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  const cv::Vec3d tc(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+  // back to the world frame: x_cam = R (X - c0) + tc = R X + (tc - R c0)
+  const cv::Vec3d t = tc - R * cv::Vec3d(c0.x, c0.y, c0.z);
+  cv::Matx34d Rt;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) Rt(i, j) = R(i, j);
+    Rt(i, 3) = t[i];
+  }
+  r.camera = K * Rt;
+  r.R = R, r.t = t;
+  r.centre_m = -(R.t() * t);
+  double ss = 0;
+  int n = 0, behind = 0;
+  for (size_t i = 0; i < world.size(); ++i) {
+    const cv::Vec3d X(world[i].x, world[i].y, world[i].z);
+    const cv::Vec3d xc = R * X + t;
+    const cv::Vec3d p = K * xc;
+    if (!(xc[2] > 0)) continue;
+    const double e = std::hypot(p[0] / p[2] - pixels[i].x, p[1] / p[2] - pixels[i].y);
+    if (e <= o.ransac_px) r.inlier[i] = 1, ss += e * e, ++n;
+  }
+  for (size_t i = 0; i < world.size(); ++i)
+    if (r.inlier[i]) behind += (R * cv::Vec3d(world[i].x, world[i].y, world[i].z) + t)[2] <= 0;
+  r.inliers = n;
+  r.rms_px = n ? std::sqrt(ss / n) : 0;
+  const std::string what = cv::format("%d of %d pairs agree, reprojection RMS %.2f px", n, r.matches, r.rms_px);
+  if (n < o.min_inliers || n < o.min_inlier_ratio * r.matches) {
+    r.reason = "no camera: " + what + cv::format(" (need %d and %.0f %%)", o.min_inliers, 100 * o.min_inlier_ratio);
+    return r;
+  }
+  if (behind > 0 || !(r.centre_m[2] > c0.z)) {
+    r.reason = "no camera: " + what + ", but the camera is not above the scene";
+    return r;
+  }
+  r.ok = true;
+  r.reason = what;
+  return r;
+}
+
+cv::Matx33d GroundHomography(const cv::Matx34d& P, double res_m, double z) {
+  // depth px (c, r) -> world (c res, -r res, z)
+  cv::Matx33d H;
+  for (int i = 0; i < 3; ++i) {
+    H(i, 0) = P(i, 0) * res_m;
+    H(i, 1) = -P(i, 1) * res_m;
+    H(i, 2) = P(i, 2) * z + P(i, 3);
+  }
+  return H;
+}
+
+}  // namespace mvkp
