@@ -31,14 +31,7 @@ void ObliqueOptions::Check() const {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-struct Rng {
-  std::mt19937_64 g;
-  explicit Rng(std::uint64_t seed) : g(seed) {}
-  double U() { return double(g() >> 11) * 0x1.0p-53; }
-  double U(double a, double b) { return a + (b - a) * U(); }
-};
+constexpr double kPi = CV_PI;
 
 // The DSM with its gaps filled from the nearest return outside them (gaps:
 // no return, and `also` where non-zero).
@@ -130,7 +123,9 @@ cv::Vec3f Bilinear(const cv::Mat3b& img, double x, double y) {
 ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64_t seed) {
   o.Check();
   Require(!city.depth.empty() && !city.photo.empty(), ErrorCode::kInvalidArgument, "RenderOblique: empty city");
-  Rng rng(seed);
+  // std::mt19937_64's output is fixed by the standard (the distributions are not)
+  std::mt19937_64 gen(seed);
+  auto U = [&gen](double a, double b) { return a + (b - a) * double(gen() >> 11) * 0x1.0p-53; };
   ObliqueView v;
   v.options = o;
   v.seed = seed;
@@ -249,18 +244,18 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
     }
 
   // lighting change, blur, noise, JPEG
-  const double gain = rng.U(1 - o.lighting, 1 + o.lighting), gamma = rng.U(1 - o.lighting, 1 + o.lighting);
-  const cv::Vec3f tint(float(rng.U(0.95, 1.05)), 1.f, float(rng.U(0.95, 1.05)));
+  const double gain = U(1 - o.lighting, 1 + o.lighting), gamma = U(1 - o.lighting, 1 + o.lighting);
+  const cv::Vec3f tint(float(U(0.95, 1.05)), 1.f, float(U(0.95, 1.05)));
   for (int y = 0; y < o.height; ++y)
     for (int x = 0; x < o.width; ++x)
       for (int c = 0; c < 3; ++c)
         img(y, x)[c] = float(255.0 * std::pow(std::clamp(img(y, x)[c] * tint[c] / 255.0, 0.0, 1.0), gamma) * gain);
-  const double sigma = rng.U(0.3, std::max(0.3, o.blur));
+  const double sigma = U(0.3, std::max(0.3, o.blur));
   if (o.blur > 0) cv::GaussianBlur(img, img, cv::Size(), sigma);
   if (o.noise > 0) {
     cv::Mat3f n(img.size());
     cv::RNG cvr(seed ^ 0x5bd1e995ull);
-    cvr.fill(n, cv::RNG::NORMAL, 0, rng.U(1.0, std::max(1.0, o.noise)));
+    cvr.fill(n, cv::RNG::NORMAL, 0, U(1.0, std::max(1.0, o.noise)));
     img += n;
   }
   img.convertTo(v.image, CV_8U);
@@ -288,7 +283,7 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& o, std::uint64
     }
   }
   for (int k = 0, tries = 0; k < o.check_points && tries < 20 * o.check_points; ++tries) {
-    const int c = int(rng.U(3, city.depth.cols - 4)), r = int(rng.U(3, city.depth.rows - 4));
+    const int c = int(U(3, city.depth.cols - 4)), r = int(U(3, city.depth.rows - 4));
     bool open = true;
     for (int dy = -3; dy <= 3 && open; ++dy)
       for (int dx = -3; dx <= 3 && open; ++dx)
