@@ -124,7 +124,7 @@ ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vect
   r.R = R, r.t = t;
   r.centre_m = -(R.t() * t);
   double ss = 0;
-  int n = 0, behind = 0;
+  int n = 0;
   for (size_t i = 0; i < world.size(); ++i) {
     const cv::Vec3d X(world[i].x, world[i].y, world[i].z);
     const cv::Vec3d xc = R * X + t;
@@ -133,8 +133,6 @@ ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vect
     const double e = std::hypot(p[0] / p[2] - pixels[i].x, p[1] / p[2] - pixels[i].y);
     if (e <= o.ransac_px) r.inlier[i] = 1, ss += e * e, ++n;
   }
-  for (size_t i = 0; i < world.size(); ++i)
-    if (r.inlier[i]) behind += (R * cv::Vec3d(world[i].x, world[i].y, world[i].z) + t)[2] <= 0;
   r.inliers = n;
   r.rms_px = n ? std::sqrt(ss / n) : 0;
   const std::string what = cv::format("%d of %d pairs agree, reprojection RMS %.2f px", n, r.matches, r.rms_px);
@@ -142,7 +140,7 @@ ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vect
     r.reason = "no camera: " + what + cv::format(" (need %d and %.0f %%)", o.min_inliers, 100 * o.min_inlier_ratio);
     return r;
   }
-  if (behind > 0 || !(r.centre_m[2] > c0.z)) {
+  if (!(r.centre_m[2] > c0.z)) {  // (inliers are in front of it by construction)
     r.reason = "no camera: " + what + ", but the camera is not above the scene";
     return r;
   }
