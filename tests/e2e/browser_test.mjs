@@ -175,6 +175,20 @@ async function newPage(browser, initScript, options = PHONE) {
   context.setDefaultTimeout(30000);
   if (initScript) await context.addInitScript(initScript);
   await context.addInitScript(() => {
+    // When the page got to each step of its first answer (ms after navigation
+    // start): printed with the time to title, to tell a slow camera from a slow server.
+    window.__phases = {};
+    const mark = (k) => { if (!(k in window.__phases)) window.__phases[k] = Math.round(performance.now()); };
+    document.addEventListener('DOMContentLoaded', () => mark('dom'));
+    document.addEventListener('playing', () => mark('camera'), true);
+    const origFetch = window.fetch;
+    window.fetch = function (...args) {
+      const rec = String(args[0]).startsWith('/api/recognize');
+      if (rec) mark('sent');
+      const p = origFetch.apply(this, args);
+      if (rec) p.then(() => mark('answer'), () => {});
+      return p;
+    };
     window.__titles = [];
     const note = () => {
       const card = document.getElementById('card');
@@ -301,6 +315,13 @@ async function main() {
   // 1. Camera pointed at the painting.
   const cam = await launch(path.join(tmp, 'scene.y4m'));
   console.log('browser', cam.version());
+  // The first page a browser draws on a fresh machine pays one-off costs (font
+  // cache, GPU process, JPEG encoder): a warm-up page of text and a canvas encode,
+  // not ours and not touching the server, so the budget below times our page.
+  const warm = await newPage(cam);
+  await warm.setContent('<p style="font: 20px system-ui">warm-up</p><canvas id="c" width="64" height="48"></canvas>');
+  await warm.evaluate(() => new Promise((ok) => document.getElementById('c').toBlob(ok, 'image/jpeg', 0.85)));
+  await warm.context().close();
   let page = await newPage(cam);
   const t0 = Date.now();
   await page.goto(base + '/');
@@ -311,7 +332,9 @@ async function main() {
   }
   const elapsed = Date.now() - t0;
   const titles = await page.evaluate(() => window.__titles);
-  console.log(`time to title: ${elapsed} ms from page.goto (in page: ${titles[0].t.toFixed(0)} ms after navigation start)`);
+  const phases = await page.evaluate(() => window.__phases);
+  console.log(`time to title: ${elapsed} ms from page.goto (in page: ${titles[0].t.toFixed(0)} ms after navigation start;`
+              + ` first steps: ${JSON.stringify(phases)})`);
   check(`"${TITLE}" shown within ${TITLE_BUDGET_MS} ms of page.goto (${elapsed} ms)`, elapsed <= TITLE_BUDGET_MS);
   let st = await cardState(page);
   check('card: artist, year and link', st.artist === 'Vincent van Gogh' && st.year === '1889' && st.linkVisible
