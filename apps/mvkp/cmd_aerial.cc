@@ -181,8 +181,9 @@ cv::Mat DrawRegistration(const cv::Mat& photo, const cv::Mat1f& depth, const std
   return canvas;
 }
 
-int RunRegister(RegisterArgs& a) {
-  try {
+// The registration as `mvkp register --json` prints it (and the drawing).
+Json RegisterCompute(RegisterArgs& a) {
+  {
     if (a.model == "similarity") a.opt.model = RegistrationOptions::Model::kSimilarity;
     else if (a.model == "affine") a.opt.model = RegistrationOptions::Model::kAffine;
     else if (a.model == "perspective") a.opt.model = RegistrationOptions::Model::kPerspective;
@@ -278,14 +279,24 @@ int RunRegister(RegisterArgs& a) {
     // start (shared libraries, mostly OpenCV and GDAL's, ~75 MB of it).
     out["peak_rss_above_start_mb"] = PeakRssMb() - start_rss_mb;
     if (!a.draw.empty()) SaveImage(a.draw, DrawRegistration(img.bgr, d.z, pcont, dcont, reg));
+    return out;
+  }
+}
+
+int RunRegister(RegisterArgs& a) {
+  try {
+    const Json out = RegisterCompute(a);
     if (a.json) {
       std::cout << out.dump() << std::endl;
-    } else if (reg.ok) {
-      std::printf("registered by %s (%s, confidence %.2f): %zu region pairs, RMS %.2f px, %.0f ms\n", ar.method.c_str(),
-                  reg.model.c_str(), ar.confidence, reg.region_matches.size(), reg.rms_px, total_ms);
+    } else if (out["ok"].get<bool>()) {
+      std::printf("registered by %s (%s, confidence %.2f): %zu region pairs, RMS %.2f px, %.0f ms\n",
+                  out["registration_method"].get<std::string>().c_str(), out["model"].get<std::string>().c_str(),
+                  out["confidence"].get<double>(), out["region_matches"].size(), out["rms_px"].get<double>(),
+                  out["time_ms"]["total"].get<double>());
     } else {
-      std::printf("%s (%zu photo / %zu depth regions, %.0f ms)\n", reg.reason.c_str(), pcont.size(), dcont.size(),
-                  total_ms);
+      std::printf("%s (%zu photo / %zu depth regions, %.0f ms)\n", out["reason"].get<std::string>().c_str(),
+                  out["regions"]["photo"].get<size_t>(), out["regions"]["depth"].get<size_t>(),
+                  out["time_ms"]["total"].get<double>());
     }
     return 0;  // "no registration found" is an answer, not an error
   } catch (const std::exception& e) {
@@ -295,6 +306,12 @@ int RunRegister(RegisterArgs& a) {
 }
 
 }  // namespace
+
+nlohmann::json RegisterNadir(const std::string& depth, const std::string& nadir, double res_m) {
+  RegisterArgs a;  // mvkp register's defaults
+  a.depth = depth, a.optical = nadir, a.res_m = res_m;
+  return RegisterCompute(a);
+}
 
 void RegisterSegment(CLI::App& app, int* code) {
   auto a = std::make_shared<SegmentArgs>();

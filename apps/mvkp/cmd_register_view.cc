@@ -1,9 +1,13 @@
-// mvkp register-view: the camera of an oblique aerial view, through the nadir
-// photo's registration to the LiDAR (issue 22, thesis §7.3; stage 2 after
-// `mvkp register`). Method "mvkp": MVKP trained on the nadir photo finds the
-// oblique view; its verified matches are lifted to 3-D through stage 1 and
-// the camera follows by PnP + RANSAC (oblique/view_pose.h).
+// mvkp register-view / register-all: the camera of an oblique aerial view,
+// through the nadir photo's registration to the LiDAR (issue 22, thesis §7.3;
+// stage 2 after `mvkp register`). Method "mvkp": MVKP trained on the nadir
+// photo's tiles finds the oblique view (oblique/nadir_tiles.h); the verified
+// matches are lifted to 3-D through stage 1 and the camera follows by PnP +
+// RANSAC (oblique/view_pose.h). register-all runs stage 1 and trains once,
+// then registers every view.
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -20,9 +24,8 @@
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/geo/raster.h"
-#include "mvkp/match/matcher.h"
+#include "mvkp/oblique/nadir_tiles.h"
 #include "mvkp/oblique/view_pose.h"
-#include "mvkp/train/trainer.h"
 #include "output.h"
 
 namespace mvkp::cli {
@@ -30,13 +33,6 @@ namespace mvkp::cli {
 namespace {
 
 using Json = nlohmann::json;
-
-struct RegisterViewArgs {
-  std::string depth, nadir, stage1, oblique, draw;
-  double focal = 0, hfov = 50, res_m = 0;
-  bool json = false;
-  ViewPoseOptions pose;
-};
 
 cv::Matx33d ReadMatrix3(const Json& j, const std::string& what) {
   Require(j.is_array() && j.size() == 3, ErrorCode::kInvalidArgument, what + ": expected a 3x3 array");
@@ -63,84 +59,128 @@ Json Mat(const auto& m, int rows, int cols) {
   return a;
 }
 
-int RunRegisterView(RegisterViewArgs& a) {
-  Timer total;
-  a.pose.Check();
-  // stage 1: `mvkp register --json` of NADIR onto DEPTH
-  Json s1;
-  {
-    std::ifstream f(a.stage1);
-    Require(bool(f), ErrorCode::kIo, a.stage1 + ": cannot read");
-    try {
-      f >> s1;
-    } catch (const std::exception&) {
-      throw Error(ErrorCode::kInvalidArgument, a.stage1 + ": not JSON (expected the output of mvkp register --json)");
-    }
-  }
+// What both commands share.
+struct Stage2Args {
+  double focal = 0, hfov = 50, res_m = 0;
+  bool json = false;
+  ViewPoseOptions pose;
+  NadirTilesOptions tiles;
+  std::vector<double> scales = {1.0, 0.5, 0.3};
+};
+
+struct RegisterViewArgs : Stage2Args {
+  std::string depth, nadir, stage1, oblique, draw;
+};
+
+struct RegisterAllArgs : Stage2Args {
+  std::string depth, nadir, stage1_in, stage1_out, draw_dir;
+  std::vector<std::string> views;
+};
+
+// Stage 1's answer, checked against the inputs.
+struct Stage1 {
+  cv::Matx33d nadir_to_depth;
+  cv::Point2d lean{0, 0};
+  double res_m = 0;
+};
+
+Stage1 ParseStage1(const Json& s1, const std::string& name, const geo::DepthRaster& d, const std::string& depth_name,
+                   const cv::Mat& nadir, const std::string& nadir_name, double res_arg) {
   Require(s1.is_object() && s1.contains("homography"), ErrorCode::kInvalidArgument,
-          a.stage1 + ": no \"homography\" (expected the output of mvkp register --json)");
+          name + ": no \"homography\" (expected the output of mvkp register --json)");
   Require(!s1["homography"].is_null(), ErrorCode::kInvalidArgument,
-          a.stage1 + ": stage 1 found no registration of the nadir photo; register it first");
-  const cv::Matx33d nadir_to_depth = ReadMatrix3(s1["homography"], a.stage1 + " homography");
-  cv::Point2d lean(0, 0);
+          name + ": stage 1 found no registration of the nadir photo; register it first");
+  Stage1 r;
+  r.nadir_to_depth = ReadMatrix3(s1["homography"], name + " homography");
   if (s1.contains("lean_depth_px_per_m") && !s1["lean_depth_px_per_m"].is_null()) {
     const Json& l = s1["lean_depth_px_per_m"];
     Require(l.is_array() && l.size() == 2 && l[0].is_number() && l[1].is_number(), ErrorCode::kInvalidArgument,
-            a.stage1 + ": \"lean_depth_px_per_m\" must be null or two numbers");
-    lean = {l[0].get<double>(), l[1].get<double>()};
+            name + ": \"lean_depth_px_per_m\" must be null or two numbers");
+    r.lean = {l[0].get<double>(), l[1].get<double>()};
   }
-
-  geo::DepthReadOptions ro;
-  const geo::DepthRaster d = geo::ReadDepthRaster(a.depth, ro);
-  const cv::Mat nadir = LoadImageGray(a.nadir);
-  const cv::Mat oblique = LoadImageGray(a.oblique);
   auto size_of = [&](const char* key) -> cv::Size {
     if (!s1.contains(key) || !s1[key].is_object() || !s1[key].contains("size") || !s1[key]["size"].is_array() ||
-        s1[key]["size"].size() != 2)
+        s1[key]["size"].size() != 2 || !s1[key]["size"][0].is_number_integer() ||
+        !s1[key]["size"][1].is_number_integer())
       return {};
     return {s1[key]["size"][0].get<int>(), s1[key]["size"][1].get<int>()};
   };
   const cv::Size ds = size_of("depth"), ps = size_of("photo");
   Require(ds == cv::Size() || ds == d.z.size(), ErrorCode::kInvalidArgument,
-          cv::format("%s does not match %s: it registered a %dx%d depth raster, this one is %dx%d", a.stage1.c_str(),
-                     a.depth.c_str(), ds.width, ds.height, d.z.cols, d.z.rows));
+          cv::format("%s does not match %s: it registered a %dx%d depth raster, this one is %dx%d", name.c_str(),
+                     depth_name.c_str(), ds.width, ds.height, d.z.cols, d.z.rows));
   Require(ps == cv::Size() || ps == nadir.size(), ErrorCode::kInvalidArgument,
-          cv::format("%s does not match %s: it registered a %dx%d photo, this one is %dx%d", a.stage1.c_str(),
-                     a.nadir.c_str(), ps.width, ps.height, nadir.cols, nadir.rows));
-  double res = a.res_m;
-  if (res <= 0 && s1.contains("depth") && s1["depth"].contains("res_m") && s1["depth"]["res_m"].is_number())
-    res = s1["depth"]["res_m"].get<double>();
-  if (res <= 0) res = d.res_m;
-  Require(res > 0, ErrorCode::kInvalidArgument,
-          a.depth + ": its ground resolution is unknown (no georeference); pass --res METRES");
-  const double f = a.focal > 0 ? a.focal : (oblique.cols / 2.0) / std::tan(a.hfov * CV_PI / 360);
-  const cv::Matx33d K(f, 0, (oblique.cols - 1) / 2.0, 0, f, (oblique.rows - 1) / 2.0, 0, 0, 1);
-  const double read_ms = total.ElapsedMs();
+          cv::format("%s does not match %s: it registered a %dx%d photo, this one is %dx%d", name.c_str(),
+                     nadir_name.c_str(), ps.width, ps.height, nadir.cols, nadir.rows));
+  r.res_m = res_arg;
+  if (r.res_m <= 0 && s1.contains("depth") && s1["depth"].is_object() && s1["depth"].contains("res_m") &&
+      s1["depth"]["res_m"].is_number())
+    r.res_m = s1["depth"]["res_m"].get<double>();
+  if (r.res_m <= 0) r.res_m = d.res_m;
+  Require(r.res_m > 0, ErrorCode::kInvalidArgument,
+          depth_name + ": its ground resolution is unknown (no georeference); pass --res METRES");
+  return r;
+}
 
-  // stage 2: MVKP trained on the nadir photo, its verified matches lifted
-  Timer tm;
-  const Model model = TrainNamed(a.nadir, nadir, TrainOptions{});
-  const double train_ms = tm.ElapsedMs();
-  tm.Restart();
-  const MatchResult m = Matcher(model, MatchOptions{}).Match(oblique);
-  const double match_ms = tm.ElapsedMs();
-  tm.Restart();
-  const NadirLifter lifter(d.z, res, nadir_to_depth, lean);
-  std::vector<cv::Point3d> X;
-  std::vector<cv::Point2d> x;
-  std::vector<size_t> from;
-  for (size_t i = 0; i < m.matches.size(); ++i) {
-    if (!m.matches[i].inlier) continue;
-    cv::Point3d w;
-    if (lifter.Lift(cv::Point2d(m.matches[i].object), &w)) X.push_back(w), x.emplace_back(m.matches[i].query), from.push_back(i);
+Json ReadJsonFile(const std::string& path) {
+  std::ifstream f(path);
+  Require(bool(f), ErrorCode::kIo, path + ": cannot read");
+  try {
+    Json j;
+    f >> j;
+    return j;
+  } catch (const std::exception&) {
+    throw Error(ErrorCode::kInvalidArgument, path + ": not JSON (expected the output of mvkp register --json)");
   }
-  const ViewPose p = EstimateViewPose(X, x, K, a.pose);
-  const double pose_ms = tm.ElapsedMs();
-  const double z0 = lifter.ground_height();
+}
 
-  if (a.json) {
+// The depth raster, the nadir photo's tiles trained once, and the lifter:
+// everything a view's registration needs.
+class Stage2 {
+ public:
+  Stage2(const geo::DepthRaster& d, const cv::Mat& nadir, const Stage1& s1, const Stage2Args& a)
+      : d_(d), s1_(s1), a_(a), tiles_(nadir, a.tiles), lifter_(d.z, s1.res_m, s1.nadir_to_depth, s1.lean) {}
+
+  double train_ms() const { return tiles_.train_ms(); }
+
+  // The view's camera as the JSON answer; `draw`: the view with the LiDAR's
+  // building outlines reprojected ("" for none).
+  Json Register(const std::string& view_path, const std::string& draw) const {
+    Timer total;
+    const cv::Mat view = LoadImageGray(view_path);
+    const double f = a_.focal > 0 ? a_.focal : (view.cols / 2.0) / std::tan(a_.hfov * CV_PI / 360);
+    const cv::Matx33d K(f, 0, (view.cols - 1) / 2.0, 0, f, (view.rows - 1) / 2.0, 0, 0, 1);
+    const double read_ms = total.ElapsedMs();
+    // The view may show the ground several times finer than the nadir photo
+    // (0.15 m against 0.5 m): it is searched at each scale in turn until a
+    // camera is found.
+    double match_ms = 0, pose_ms = 0, used_scale = 0;
+    std::vector<NadirMatch> ms;
+    std::vector<cv::Point3d> Xs;
+    ViewPose p;
+    Timer tm;
+    for (double sc : a_.scales) {
+      tm.Restart();
+      std::vector<NadirMatch> mi = tiles_.Match(view, sc);
+      match_ms += tm.ElapsedMs();
+      tm.Restart();
+      std::vector<NadirMatch> kept;
+      std::vector<cv::Point3d> X;
+      std::vector<cv::Point2d> x;
+      for (const auto& c : mi) {
+        cv::Point3d w;
+        if (lifter_.Lift(cv::Point2d(c.nadir), &w)) X.push_back(w), x.emplace_back(c.view), kept.push_back(c);
+      }
+      ViewPose pi = EstimateViewPose(X, x, K, a_.pose);
+      pose_ms += tm.ElapsedMs();
+      if (used_scale == 0 || pi.ok || (!p.ok && pi.inliers > p.inliers))
+        ms = std::move(kept), Xs = std::move(X), p = std::move(pi), used_scale = sc;
+      if (p.ok) break;
+    }
+    const double res = s1_.res_m, z0 = lifter_.ground_height();
     Json out;
     out["method"] = "mvkp-pnp";
+    out["view"] = view_path;
     out["ok"] = p.ok;
     out["reason"] = p.ok ? p.reason : "no registration: " + p.reason;
     out["K"] = Mat(K, 3, 3);
@@ -152,53 +192,186 @@ int RunRegisterView(RegisterViewArgs& a) {
       out["centre_m"] = {p.centre_m[0], p.centre_m[1], p.centre_m[2]};
       const cv::Matx33d G = GroundHomography(p.camera, res, z0);
       out["ground_z_m"] = z0;
-      out["ground_homography"] = Mat(G, 3, 3);  // depth px at the ground height -> oblique px
-      out["homography"] = Mat(G * nadir_to_depth, 3, 3);  // nadir px -> oblique px, for the ground plane
+      out["ground_homography"] = Mat(G, 3, 3);  // depth px at the ground height -> view px
+      out["homography"] = Mat(G * s1_.nadir_to_depth, 3, 3);  // nadir px -> view px, for the ground plane
     } else {
       out["camera"] = nullptr;
       out["homography"] = nullptr;
     }
-    Json ms = Json::array();
-    for (size_t k = 0; k < from.size(); ++k) {
-      const auto& c = m.matches[from[k]];
-      ms.push_back({c.object.x, c.object.y, c.query.x, c.query.y, c.distance, p.ok && p.inlier[k] ? 1 : 0});
+    Json mj = Json::array();
+    for (size_t k = 0; k < ms.size(); ++k)
+      mj.push_back({ms[k].nadir.x, ms[k].nadir.y, ms[k].view.x, ms[k].view.y, ms[k].distance,
+                    p.ok && p.inlier[k] ? 1 : 0});
+    out["matches"] = mj;
+    {
+      // where the agreeing pairs come from: tiles, and the heights above the ground they span
+      std::vector<int> tl;
+      float zlo = 1e30f, zhi = -1e30f;
+      for (size_t k = 0; k < ms.size(); ++k) {
+        if (!(p.ok && p.inlier[k])) continue;
+        tl.push_back(ms[k].tile);
+        zlo = std::min(zlo, float(Xs[k].z)), zhi = std::max(zhi, float(Xs[k].z));
+      }
+      std::sort(tl.begin(), tl.end());
+      out["inlier_tiles"] = std::unique(tl.begin(), tl.end()) - tl.begin();
+      out["inlier_height_span_m"] = zhi >= zlo ? double(zhi - zlo) : 0.0;
     }
-    out["matches"] = ms;
-    out["keypoints1"] = model.locations.size();
-    out["keypoints2"] = m.keypoints;
-    out["lifted"] = X.size();
+    out["tiles"] = tiles_.size();
+    out["lifted"] = ms.size();
     out["inliers"] = p.inliers;
     out["rms_px"] = p.rms_px;
-    out["time_ms"] = {{"read", read_ms}, {"train", train_ms}, {"match", match_ms}, {"pose", pose_ms},
-                      {"total", total.ElapsedMs()}};
+    out["scale"] = used_scale;
+    out["time_ms"] = {{"read", read_ms}, {"match", match_ms}, {"pose", pose_ms}, {"total", total.ElapsedMs()}};
+    if (!draw.empty()) SaveImage(draw, Draw(view_path, p));
+    return out;
+  }
+
+ private:
+  // The LiDAR's building outlines, at their roof heights, in the view.
+  cv::Mat Draw(const std::string& view_path, const ViewPose& p) const {
+    cv::Mat img = LoadImageColor(view_path);
+    if (!p.ok) return img;
+    const double res = s1_.res_m;
+    for (const auto& r : SegmentDepth(d_.z)) {
+      std::vector<cv::Point> poly;
+      for (const auto& q : r.contour) {
+        float z = -1e9f;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int yy = std::clamp(q.y + dy, 0, d_.z.rows - 1), xx = std::clamp(q.x + dx, 0, d_.z.cols - 1);
+            if (std::isfinite(d_.z(yy, xx))) z = std::max(z, d_.z(yy, xx));
+          }
+        if (z < -1e8f) continue;
+        const cv::Vec3d v = p.camera * cv::Vec4d(q.x * res, -q.y * res, z, 1);
+        if (v[2] > 0) poly.emplace_back(int(std::lround(v[0] / v[2])), int(std::lround(v[1] / v[2])));
+      }
+      if (poly.size() >= 3) cv::polylines(img, std::vector<std::vector<cv::Point>>{poly}, true, {0, 0, 255}, 2);
+    }
+    return img;
+  }
+
+  const geo::DepthRaster& d_;
+  Stage1 s1_;
+  const Stage2Args& a_;
+  NadirTiles tiles_;
+  NadirLifter lifter_;
+};
+
+void CheckStage2(const Stage2Args& a) {
+  a.pose.Check();
+  a.tiles.Check();
+  Require(!a.scales.empty(), ErrorCode::kInvalidArgument, "--scales: at least one scale");
+}
+
+int RunRegisterView(RegisterViewArgs& a) {
+  CheckStage2(a);
+  const Json s1j = ReadJsonFile(a.stage1);
+  const geo::DepthRaster d = geo::ReadDepthRaster(a.depth, geo::DepthReadOptions{});
+  const cv::Mat nadir = LoadImageGray(a.nadir);
+  LoadImageGray(a.oblique);  // a bad view is an error before the training
+  const Stage1 s1 = ParseStage1(s1j, a.stage1, d, a.depth, nadir, a.nadir, a.res_m);
+  const Stage2 stage2(d, nadir, s1, a);
+  Json out = stage2.Register(a.oblique, a.draw);
+  out["time_ms"]["train"] = stage2.train_ms();
+  if (a.json) {
     std::cout << out.dump() << std::endl;
   } else {
-    std::printf("%s -> %s: %s; %s; %.0f ms\n", a.nadir.c_str(), a.oblique.c_str(), p.ok ? "camera found" : "no camera",
-                p.reason.c_str(), total.ElapsedMs());
-  }
-  if (!a.draw.empty()) {
-    // the LiDAR's building outlines, at their roof heights, in the view
-    cv::Mat img = LoadImageColor(a.oblique);
-    if (p.ok) {
-      for (const auto& r : SegmentDepth(d.z)) {
-        std::vector<cv::Point> poly;
-        for (const auto& q : r.contour) {
-          float z = -1e9f;
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const int yy = std::clamp(q.y + dy, 0, d.z.rows - 1), xx = std::clamp(q.x + dx, 0, d.z.cols - 1);
-              if (std::isfinite(d.z(yy, xx))) z = std::max(z, d.z(yy, xx));
-            }
-          if (z < -1e8f) continue;
-          const cv::Vec3d v = p.camera * cv::Vec4d(q.x * res, -q.y * res, z, 1);
-          if (v[2] > 0) poly.emplace_back(int(std::lround(v[0] / v[2])), int(std::lround(v[1] / v[2])));
-        }
-        if (poly.size() >= 3) cv::polylines(img, std::vector<std::vector<cv::Point>>{poly}, true, {0, 0, 255}, 2);
-      }
-    }
-    SaveImage(a.draw, img);
+    std::printf("%s -> %s: %s; %s; train %.0f ms, view %.0f ms\n", a.nadir.c_str(), a.oblique.c_str(),
+                out["ok"].get<bool>() ? "camera found" : "no camera", out["reason"].get<std::string>().c_str(),
+                stage2.train_ms(), out["time_ms"]["total"].get<double>());
   }
   return 0;
+}
+
+int RunRegisterAll(RegisterAllArgs& a) {
+  CheckStage2(a);
+  Timer total;
+  const geo::DepthRaster d = geo::ReadDepthRaster(a.depth, geo::DepthReadOptions{});
+  const cv::Mat nadir = LoadImageGray(a.nadir);
+  for (const auto& v : a.views) LoadImageGray(v);  // bad views are errors before the work
+  if (!a.draw_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.draw_dir, ec);
+    Require(!ec, ErrorCode::kIo, a.draw_dir + ": cannot create: " + ec.message());
+  }
+  Timer tm;
+  const Json s1j = a.stage1_in.empty() ? RegisterNadir(a.depth, a.nadir, a.res_m) : ReadJsonFile(a.stage1_in);
+  const double stage1_ms = a.stage1_in.empty() ? tm.ElapsedMs() : 0;
+  if (!a.stage1_out.empty()) {
+    std::ofstream f(a.stage1_out);
+    Require(bool(f << s1j.dump() << '\n'), ErrorCode::kIo, a.stage1_out + ": cannot write");
+  }
+  Json out;
+  out["method"] = "mvkp-register-all";
+  out["stage1"] = {{"ok", s1j.value("ok", !s1j.value("homography", Json()).is_null())},
+                   {"reason", s1j.value("reason", std::string())},
+                   {"homography", s1j.value("homography", Json())},
+                   {"lean_depth_px_per_m", s1j.value("lean_depth_px_per_m", Json())},
+                   {"time_ms", stage1_ms}};
+  Json views = Json::array();
+  double train_ms = 0;
+  const bool registered = s1j.is_object() && s1j.contains("homography") && !s1j["homography"].is_null();
+  if (!registered) {
+    // No nadir registration: no view can be placed (an answer, not an error).
+    for (const auto& v : a.views)
+      views.push_back({{"view", v}, {"ok", false}, {"camera", nullptr}, {"homography", nullptr},
+                       {"reason", "no registration: stage 1 did not register the nadir photo"}});
+  } else {
+    const Stage1 s1 = ParseStage1(s1j, a.stage1_in.empty() ? "stage 1" : a.stage1_in, d, a.depth, nadir, a.nadir,
+                                  a.res_m);
+    const Stage2 stage2(d, nadir, s1, a);
+    train_ms = stage2.train_ms();
+    for (const auto& v : a.views) {
+      std::string draw;
+      if (!a.draw_dir.empty())
+        draw = (std::filesystem::path(a.draw_dir) / (std::filesystem::path(v).stem().string() + "-registered.jpg")).string();
+      views.push_back(stage2.Register(v, draw));
+    }
+  }
+  out["views"] = views;
+  out["time_ms"] = {{"stage1", stage1_ms}, {"train", train_ms}, {"total", total.ElapsedMs()}};
+  if (a.json) {
+    std::cout << out.dump() << std::endl;
+  } else {
+    std::printf("stage 1: %s\n", out["stage1"]["ok"].get<bool>() ? "registered" : out["stage1"]["reason"].get<std::string>().c_str());
+    for (const auto& v : views)
+      std::printf("%s: %s; %s\n", v["view"].get<std::string>().c_str(), v["ok"].get<bool>() ? "camera found" : "no camera",
+                  v["reason"].get<std::string>().c_str());
+    std::printf("stage 1 %.0f ms, training %.0f ms, total %.0f ms\n", stage1_ms, train_ms, total.ElapsedMs());
+  }
+  return 0;
+}
+
+void AddStage2Options(CLI::App* c, Stage2Args* a) {
+  c->add_option("--focal", a->focal, "focal length of the oblique camera, pixels (default: from --hfov)")
+      ->check(CLI::Range(1.0, 1e6));
+  c->add_option("--hfov", a->hfov, "horizontal field of view of the oblique camera, degrees")
+      ->check(CLI::Range(5.0, 150.0))
+      ->capture_default_str();
+  c->add_option("--res", a->res_m, "depth raster cell size, metres (default: from stage 1 or the raster)")
+      ->check(CLI::Range(0.01, 100.0));
+  c->add_option("--min-inliers", a->pose.min_inliers, "matches the camera must explain")
+      ->check(CLI::Range(6, 100000))
+      ->capture_default_str();
+  c->add_option("--min-inlier-ratio", a->pose.min_inlier_ratio, "share of the lifted matches the camera must explain")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  c->add_option("--tile", a->tiles.tile_px, "side of the nadir photo's tiles trained by MVKP, pixels")
+      ->check(CLI::Range(64, 4096))
+      ->capture_default_str();
+  c->add_option("--tile-stride", a->tiles.stride, "step between tiles, share of --tile (< 1: they overlap)")
+      ->check(CLI::Range(0.2, 1.0))
+      ->capture_default_str();
+  c->add_option("--tile-views", a->tiles.train.views, "MVKP training views per tile")
+      ->check(CLI::Range(10, 1000))
+      ->capture_default_str();
+  c->add_option("--tile-levels", a->tiles.train.levels, "MVKP training pyramid levels per tile (0: auto)")
+      ->check(CLI::Range(0, 8))
+      ->capture_default_str();
+  c->add_option("--scales", a->scales, "scales the view is searched at, in turn, until a camera is found")
+      ->check(CLI::Range(0.05, 4.0))
+      ->capture_default_str();
+  c->add_flag("--json", a->json, "print the camera(s) and the correspondences as JSON");
 }
 
 }  // namespace
@@ -209,24 +382,31 @@ void RegisterRegisterView(CLI::App& app, int* code) {
       "register-view",
       "Stage 2 (issue 22): the camera of an oblique view OBLIQUE of the area of NADIR, through NADIR's "
       "registration to DEPTH (STAGE1 = the output of mvkp register DEPTH NADIR --json). MVKP trained on "
-      "NADIR finds OBLIQUE; its matches, lifted to 3-D through stage 1, give the camera by PnP + RANSAC");
+      "NADIR's tiles finds OBLIQUE; its matches, lifted to 3-D through stage 1, give the camera by PnP + RANSAC");
   c->add_option("DEPTH", a->depth, "depth raster (as for mvkp register)")->required();
   c->add_option("NADIR", a->nadir, "the nadir photo registered by stage 1")->required();
   c->add_option("STAGE1", a->stage1, "mvkp register DEPTH NADIR --json output")->required();
   c->add_option("OBLIQUE", a->oblique, "the oblique view")->required();
-  c->add_option("--focal", a->focal, "focal length of the oblique camera, pixels (default: from --hfov)")
-      ->check(CLI::Range(1.0, 1e6));
-  c->add_option("--hfov", a->hfov, "horizontal field of view of the oblique camera, degrees")
-      ->check(CLI::Range(5.0, 150.0))
-      ->capture_default_str();
-  c->add_option("--res", a->res_m, "depth raster cell size, metres (default: from STAGE1 or the raster)")
-      ->check(CLI::Range(0.01, 100.0));
-  c->add_option("--min-inliers", a->pose.min_inliers, "matches the camera must explain")
-      ->check(CLI::Range(6, 100000))
-      ->capture_default_str();
-  c->add_flag("--json", a->json, "print the camera and the correspondences as JSON");
+  AddStage2Options(c, a.get());
   c->add_option("--draw", a->draw, "write the view with the LiDAR's building outlines reprojected");
   c->callback([a, code] { *code = RunRegisterView(*a); });
+}
+
+void RegisterRegisterAll(CLI::App& app, int* code) {
+  auto a = std::make_shared<RegisterAllArgs>();
+  auto* c = app.add_subcommand(
+      "register-all",
+      "Stages 1 and 2 (issue 22): register NADIR to DEPTH (as mvkp register), train MVKP on NADIR's tiles once, "
+      "then give the camera of each oblique VIEW (as mvkp register-view)");
+  c->add_option("DEPTH", a->depth, "depth raster (as for mvkp register)")->required();
+  c->add_option("NADIR", a->nadir, "the nadir photo of the area")->required();
+  c->add_option("VIEW", a->views, "oblique views")->required();
+  AddStage2Options(c, a.get());
+  c->add_option("--stage1", a->stage1_in, "use this stage-1 answer (mvkp register --json) instead of registering")
+      ->check(CLI::ExistingFile);
+  c->add_option("--save-stage1", a->stage1_out, "write the stage-1 answer (for register-view)");
+  c->add_option("--draw-dir", a->draw_dir, "write each view with the LiDAR's building outlines reprojected here");
+  c->callback([a, code] { *code = RunRegisterAll(*a); });
 }
 
 }  // namespace mvkp::cli

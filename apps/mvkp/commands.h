@@ -5,6 +5,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 namespace mvkp::cli {
 
@@ -25,12 +26,17 @@ void RegisterVideo(CLI::App& app, int* exit_code);
 void RegisterSynthCity(CLI::App& app, int* exit_code);
 void RegisterSynthOblique(CLI::App& app, int* exit_code);
 void RegisterRegisterView(CLI::App& app, int* exit_code);
+void RegisterRegisterAll(CLI::App& app, int* exit_code);
 void RegisterSegment(CLI::App& app, int* exit_code);
 void RegisterRegister(CLI::App& app, int* exit_code);
 void RegisterOrthoModels(CLI::App& app, int* exit_code);
 void RegisterRecognize(CLI::App& app, int* exit_code);
 void RegisterVocab(CLI::App& app, int* exit_code);
 void RegisterServe(CLI::App& app, int* exit_code);
+
+// Stage 1 of aerial registration with mvkp register's defaults: what
+// `mvkp register DEPTH NADIR --json [--res RES_M]` prints (cmd_aerial.cc).
+nlohmann::json RegisterNadir(const std::string& depth, const std::string& nadir, double res_m = 0);
 
 // The process's command line as main() received it (video_forward.cc passes
 // it on to the mvkp-video helper).

@@ -77,6 +77,7 @@ int main(int argc, char** argv) {
   mvkp::cli::RegisterSynthCity(app, &code);
   mvkp::cli::RegisterSynthOblique(app, &code);
   mvkp::cli::RegisterRegisterView(app, &code);
+  mvkp::cli::RegisterRegisterAll(app, &code);
   mvkp::cli::RegisterSegment(app, &code);
   mvkp::cli::RegisterRegister(app, &code);
   mvkp::cli::RegisterOrthoModels(app, &code);
