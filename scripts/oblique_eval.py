@@ -25,6 +25,7 @@ same per view as `mvkp register-view`; stage 1 as --stage1 says). Its time
 per view is the view's own plus its share of the nadir photo's training.
 
     scripts/oblique_eval.py --mvkp build/mvkp --out out/oblique --style dense --seed 1 --n 4 --views 4
+    scripts/oblique_eval.py --aggregate out/oblique*/summary.json   # one table over several runs
 """
 import argparse
 import collections
@@ -153,7 +154,35 @@ def mvkp_pair(mvkp, nadir, oblique):
     return H, m[:, 0:2], m[:, 2:4]
 
 
+def aggregate(paths):
+    """Per-tilt table over several runs' summary files (every method they share)."""
+    rows, methods = [], None
+    for p in paths:
+        s = json.load(open(p))
+        rows += s["rows"]
+        methods = [m for m in s["summary"]["methods"] if methods is None or m in methods]
+    print("| tilt | views | " + " | ".join(methods) + " |")
+    print("|---|---|" + "---|" * len(methods))
+    for lo, hi in TILT_BINS + [(30, 60)]:
+        sel = [r for r in rows if lo <= r["tilt"] < hi or (hi == 60 and r["tilt"] == 60)]
+        cells = []
+        for m in methods:
+            errs = [r[m]["error_px"] for r in sel if r[m]["error_px"] is not None]
+            ok = [e for e in errs if e <= 5]
+            view_ms = [r[m].get("view_ms", r[m]["ms"]) for r in sel]
+            ms = [r[m]["ms"] for r in sel]
+            cells.append("%d (%.0f %%), %d wrong, %s px; %.0f / %.0f ms" % (
+                len(ok), 100.0 * len(ok) / max(1, len(sel)), len(errs) - len(ok),
+                "%.2f" % statistics.median(ok) if ok else "-", statistics.median(view_ms) if view_ms else 0,
+                statistics.median(ms) if ms else 0))
+        print("| %d-%d° | %d | %s |" % (lo, hi, len(sel), " | ".join(cells)))
+    print("\ncells: right (share), wrong, median error of the right ones; median ms per view without / with "
+          "its share of training")
+
+
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--aggregate":
+        return aggregate(sys.argv[2:])
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mvkp", default="build/mvkp")
     ap.add_argument("--out", required=True)
@@ -262,8 +291,9 @@ def main():
                         err = float(np.linalg.norm(project(np.array(j["camera"]), Xw) - opx, axis=1).mean())
                     # the view's own time plus its share of the nadir photo's training
                     row[m] = {"error_px": err, "view_ms": j.get("time_ms", {}).get("total", 0),
-                              **{k: j.get(k) for k in ("inliers", "lifted", "inlier_tiles", "inlier_height_span_m",
-                                                       "rms_px", "scale")},
+                              **{k: j.get(k) for k in ("inliers", "lifted", "inlier_tiles", "inlier_cells",
+                                                       "inlier_height_span_m", "nadir_gsd_m", "rms_px",
+                                                       "scale")},
                               "ms": j.get("time_ms", {}).get("total", 0) + j.get("train_share_ms", 0)}
                     continue
                 row[m] = {"error_px": err, "ms": (time.perf_counter() - t0) * 1000}

@@ -66,6 +66,7 @@ struct Stage2Args {
   ViewPoseOptions pose;
   NadirTilesOptions tiles;
   std::vector<double> scales = {1.0, 0.5, 0.3};
+  double nadir_gsd_m = 0.4;
 };
 
 struct RegisterViewArgs : Stage2Args {
@@ -139,9 +140,12 @@ Json ReadJsonFile(const std::string& path) {
 class Stage2 {
  public:
   Stage2(const geo::DepthRaster& d, const cv::Mat& nadir, const Stage1& s1, const Stage2Args& a)
-      : d_(d), s1_(s1), a_(a), tiles_(nadir, a.tiles), lifter_(d.z, s1.res_m, s1.nadir_to_depth, s1.lean) {}
+      : d_(d), s1_(s1), a_(a), nadir_gsd_m_(NadirGsd(nadir.size(), s1)),
+        tiles_(nadir, TileOptions(a, nadir_gsd_m_)), lifter_(d.z, s1.res_m, s1.nadir_to_depth, s1.lean) {}
 
   double train_ms() const { return tiles_.train_ms(); }
+  double nadir_gsd_m() const { return nadir_gsd_m_; }
+  std::size_t tiles() const { return tiles_.size(); }
 
   // The view's camera as the JSON answer; `draw`: the view with the LiDAR's
   // building outlines reprojected ("" for none).
@@ -171,7 +175,7 @@ class Stage2 {
         cv::Point3d w;
         if (lifter_.Lift(cv::Point2d(c.nadir), &w)) X.push_back(w), x.emplace_back(c.view), kept.push_back(c);
       }
-      ViewPose pi = EstimateViewPose(X, x, K, a_.pose);
+      ViewPose pi = EstimateViewPose(X, x, K, a_.pose, view.size());
       pose_ms += tm.ElapsedMs();
       if (used_scale == 0 || pi.ok || (!p.ok && pi.inliers > p.inliers))
         ms = std::move(kept), Xs = std::move(X), p = std::move(pi), used_scale = sc;
@@ -205,18 +209,23 @@ class Stage2 {
     out["matches"] = mj;
     {
       // where the agreeing pairs come from: tiles, and the heights above the ground they span
-      std::vector<int> tl;
+      std::vector<int> tl, cells;
       float zlo = 1e30f, zhi = -1e30f;
       for (size_t k = 0; k < ms.size(); ++k) {
         if (!(p.ok && p.inlier[k])) continue;
         tl.push_back(ms[k].tile);
+        cells.push_back(std::clamp(int(4 * ms[k].view.y / view.rows), 0, 3) * 4 +
+                        std::clamp(int(4 * ms[k].view.x / view.cols), 0, 3));
         zlo = std::min(zlo, float(Xs[k].z)), zhi = std::max(zhi, float(Xs[k].z));
       }
       std::sort(tl.begin(), tl.end());
       out["inlier_tiles"] = std::unique(tl.begin(), tl.end()) - tl.begin();
+      std::sort(cells.begin(), cells.end());
+      out["inlier_cells"] = std::unique(cells.begin(), cells.end()) - cells.begin();  // of the view's 4 x 4
       out["inlier_height_span_m"] = zhi >= zlo ? double(zhi - zlo) : 0.0;
     }
     out["tiles"] = tiles_.size();
+    out["nadir_gsd_m"] = nadir_gsd_m_;
     out["lifted"] = ms.size();
     out["inliers"] = p.inliers;
     out["rms_px"] = p.rms_px;
@@ -227,6 +236,26 @@ class Stage2 {
   }
 
  private:
+  // Ground metres per nadir pixel at the photo's centre, from stage 1.
+  static double NadirGsd(cv::Size size, const Stage1& s1) {
+    const cv::Matx33d& H = s1.nadir_to_depth;
+    const double x = (size.width - 1) / 2.0, y = (size.height - 1) / 2.0;
+    const double w = H(2, 0) * x + H(2, 1) * y + H(2, 2);
+    const double u = (H(0, 0) * x + H(0, 1) * y + H(0, 2)) / w, v = (H(1, 0) * x + H(1, 1) * y + H(1, 2)) / w;
+    // Jacobian of the projective map at (x, y)
+    const double a = (H(0, 0) - u * H(2, 0)) / w, b = (H(0, 1) - u * H(2, 1)) / w;
+    const double c = (H(1, 0) - v * H(2, 0)) / w, e = (H(1, 1) - v * H(2, 1)) / w;
+    return s1.res_m * std::sqrt(std::abs(a * e - b * c));
+  }
+  // A photo finer than --nadir-gsd is trained resized to it: the views are
+  // searched down to a third of their size anyway, and the tiles (training
+  // time) grow with the photo's pixels.
+  static NadirTilesOptions TileOptions(const Stage2Args& a, double gsd) {
+    NadirTilesOptions t = a.tiles;
+    if (a.nadir_gsd_m > 0 && gsd > 0 && gsd < a.nadir_gsd_m) t.photo_scale = std::max(0.05, gsd / a.nadir_gsd_m);
+    return t;
+  }
+
   // The LiDAR's building outlines, at their roof heights, in the view.
   cv::Mat Draw(const std::string& view_path, const ViewPose& p) const {
     cv::Mat img = LoadImageColor(view_path);
@@ -253,6 +282,7 @@ class Stage2 {
   const geo::DepthRaster& d_;
   Stage1 s1_;
   const Stage2Args& a_;
+  double nadir_gsd_m_;
   NadirTiles tiles_;
   NadirLifter lifter_;
 };
@@ -367,6 +397,10 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
       ->capture_default_str();
   c->add_option("--tile-levels", a->tiles.train.levels, "MVKP training pyramid levels per tile (0: auto)")
       ->check(CLI::Range(0, 8))
+      ->capture_default_str();
+  c->add_option("--nadir-gsd", a->nadir_gsd_m,
+                "train a nadir photo finer than this (metres per pixel, from stage 1) resized to it (0: never)")
+      ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   c->add_option("--scales", a->scales, "scales the view is searched at, in turn, until a camera is found")
       ->check(CLI::Range(0.05, 4.0))

@@ -13,6 +13,7 @@ namespace mvkp {
 void NadirTilesOptions::Check() const {
   Require(tile_px >= 64 && tile_px <= 4096, ErrorCode::kInvalidArgument, "tile_px must be in [64, 4096]");
   Require(stride > 0.1 && stride <= 1.0, ErrorCode::kInvalidArgument, "stride must be in (0.1, 1]");
+  Require(photo_scale >= 0.05 && photo_scale <= 1.0, ErrorCode::kInvalidArgument, "photo_scale must be in [0.05, 1]");
   match.Check();
 }
 
@@ -34,12 +35,15 @@ NadirTiles::NadirTiles(const cv::Mat& nadir, const NadirTilesOptions& options) {
   Require(!nadir.empty() && nadir.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "NadirTiles: an 8-bit grey nadir photo is required");
   Timer t;
-  const int tw = std::min(options.tile_px, nadir.cols), th = std::min(options.tile_px, nadir.rows);
-  for (int y : Origins(nadir.rows, th, options.stride)) {
-    for (int x : Origins(nadir.cols, tw, options.stride)) {
+  photo_scale_ = options.photo_scale;
+  cv::Mat photo = nadir;
+  if (photo_scale_ != 1.0) cv::resize(nadir, photo, cv::Size(), photo_scale_, photo_scale_, cv::INTER_AREA);
+  const int tw = std::min(options.tile_px, photo.cols), th = std::min(options.tile_px, photo.rows);
+  for (int y : Origins(photo.rows, th, options.stride)) {
+    for (int x : Origins(photo.cols, tw, options.stride)) {
       const cv::Rect r(x, y, tw, th);
       try {
-        Model m = Train(nadir(r).clone(), options.train);
+        Model m = Train(photo(r).clone(), options.train);
         tiles_.push_back({r, std::make_unique<Matcher>(m, options.match)});
       } catch (const Error& e) {
         if (e.code() != ErrorCode::kNoTexture) throw;  // a flat tile (water, a field): nothing to find
@@ -62,7 +66,8 @@ std::vector<NadirMatch> NadirTiles::Match(const cv::Mat& view, double scale) con
     if (!m.found) continue;
     const cv::Point2f o(float(tiles_[i].rect.x), float(tiles_[i].rect.y));
     for (const auto& c : m.matches)
-      if (c.inlier) out.push_back({c.object + o, c.query * float(1.0 / scale), c.distance, int(i)});
+      if (c.inlier)
+        out.push_back({(c.object + o) * float(1.0 / photo_scale_), c.query * float(1.0 / scale), c.distance, int(i)});
   }
   return out;
 }

@@ -25,7 +25,11 @@
 namespace mvkp {
 
 struct NadirTilesOptions {
-  int tile_px = 320;      // tile side, nadir pixels
+  // The photo is resized by this factor before it is cut (< 1: a photo much
+  // finer than the views need trains fewer tiles); matches are returned in
+  // the photo's own pixels.
+  double photo_scale = 1.0;
+  int tile_px = 320;      // tile side, pixels of the resized photo
   double stride = 0.75;   // tile step, share of tile_px (< 1: tiles overlap)
   TrainOptions train = DefaultTrain();
   MatchOptions match = DefaultMatch();
@@ -66,7 +70,7 @@ class NadirTiles {
   std::vector<NadirMatch> Match(const cv::Mat& view_gray, double scale) const;
 
   std::size_t size() const { return tiles_.size(); }
-  const cv::Rect& tile(std::size_t i) const { return tiles_[i].rect; }
+  const cv::Rect& tile(std::size_t i) const { return tiles_[i].rect; }  // in the resized photo
   double train_ms() const { return train_ms_; }
 
  private:
@@ -75,6 +79,7 @@ class NadirTiles {
     std::unique_ptr<Matcher> matcher;
   };
   std::vector<Tile> tiles_;
+  double photo_scale_ = 1;
   double train_ms_ = 0;
 };
 

@@ -30,7 +30,7 @@ ViewPose Camera(const City& city, const NadirTiles& tiles, const ObliqueView& vi
       cv::Point3d w;
       if (lift.Lift(cv::Point2d(m.nadir), &w)) X.push_back(w), x.emplace_back(m.view);
     }
-    p = EstimateViewPose(X, x, view.K);
+    p = EstimateViewPose(X, x, view.K, {}, view.image.size());
     if (p.ok) break;
   }
   return p;

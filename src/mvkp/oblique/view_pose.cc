@@ -11,9 +11,11 @@
 namespace mvkp {
 
 void ViewPoseOptions::Check() const {
-  Require(ransac_px > 0 && iterations >= 100 && min_inliers >= 6 && min_inlier_ratio >= 0 && min_inlier_ratio <= 1,
+  Require(ransac_px > 0 && iterations >= 100 && min_inliers >= 6 && min_inlier_ratio >= 0 && min_inlier_ratio <= 1 &&
+              min_inlier_cells >= 0 && min_inlier_cells <= 16,
           ErrorCode::kInvalidArgument,
-          "ViewPoseOptions: ransac_px > 0, iterations >= 100, min_inliers >= 6, min_inlier_ratio in [0, 1]");
+          "ViewPoseOptions: ransac_px > 0, iterations >= 100, min_inliers >= 6, min_inlier_ratio in [0, 1], "
+          "min_inlier_cells in [0, 16]");
 }
 
 NadirLifter::NadirLifter(const cv::Mat1f& depth, double res_m, const cv::Matx33d& nadir_to_depth,
@@ -80,7 +82,7 @@ bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const {
 }
 
 ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vector<cv::Point2d>& pixels,
-                          const cv::Matx33d& K, const ViewPoseOptions& o) {
+                          const cv::Matx33d& K, const ViewPoseOptions& o, cv::Size image) {
   o.Check();
   Require(world.size() == pixels.size(), ErrorCode::kInvalidArgument,
           "EstimateViewPose: world and pixels must have the same size");
@@ -139,6 +141,19 @@ ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vect
   if (n < o.min_inliers || n < o.min_inlier_ratio * r.matches) {
     r.reason = "no camera: " + what + cv::format(" (need %d and %.0f %%)", o.min_inliers, 100 * o.min_inlier_ratio);
     return r;
+  }
+  if (!image.empty()) {
+    std::vector<char> cell(16, 0);
+    for (size_t i = 0; i < pixels.size(); ++i)
+      if (r.inlier[i])
+        cell[size_t(std::clamp(int(4 * pixels[i].y / image.height), 0, 3) * 4 +
+                    std::clamp(int(4 * pixels[i].x / image.width), 0, 3))] = 1;
+    const int cells = int(std::count(cell.begin(), cell.end(), 1));
+    if (cells < o.min_inlier_cells) {
+      r.reason = "no camera: " + what + cv::format(", but only in %d of the view's 4 x 4 cells (need %d)", cells,
+                                                   o.min_inlier_cells);
+      return r;
+    }
   }
   if (!(r.centre_m[2] > c0.z)) {  // (inliers are in front of it by construction)
     r.reason = "no camera: " + what + ", but the camera is not above the scene";

@@ -95,6 +95,31 @@ TEST(ViewPose, CameraFromLiftedPairsAmongOutliers) {
   }
 }
 
+// Pairs in one corner of the view: the camera they give is refused when the
+// view's size is known (one of 16 cells, 3 needed), however well they agree.
+TEST(ViewPose, OneClusterIsNotACamera) {
+  const Scene s = MakeScene("suburb", 40, 5);
+  const cv::Matx33d KR = s.view.K * s.view.R, KRi = KR.inv();
+  std::vector<cv::Point3d> X;
+  std::vector<cv::Point2d> x;
+  std::mt19937_64 g(4);
+  for (int i = 0; i < 40; ++i) {
+    // a pixel within 50 px of (70, 60), back to the ground plane z = 0
+    const cv::Point2d px(40 + double(g() % 60), 30 + double(g() % 60));
+    const cv::Vec3d d = KRi * cv::Vec3d(px.x, px.y, 1);
+    const double t = -s.view.centre_m[2] / d[2];
+    X.emplace_back(s.view.centre_m[0] + t * d[0], s.view.centre_m[1] + t * d[1], 0.0);
+    X.back().z += double(g() % 3);  // a little relief: not a planar degeneracy
+    const cv::Vec3d p = s.view.camera * cv::Vec4d(X.back().x, X.back().y, X.back().z, 1);
+    x.emplace_back(p[0] / p[2], p[1] / p[2]);
+  }
+  const ViewPose free = EstimateViewPose(X, x, s.view.K);
+  EXPECT_TRUE(free.ok) << free.reason;
+  const ViewPose p = EstimateViewPose(X, x, s.view.K, {}, cv::Size(480, 360));
+  EXPECT_FALSE(p.ok);
+  EXPECT_NE(p.reason.find("1 of the view's 4 x 4 cells"), std::string::npos) << p.reason;
+}
+
 TEST(ViewPose, GroundHomographyMapsGroundPoints) {
   const Scene s = MakeScene("classic", 40, 2);
   const double res = s.city.options.res_m;
