@@ -24,8 +24,7 @@
 #include "mvkp/core/image_io.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/geo/raster.h"
-#include "mvkp/oblique/nadir_tiles.h"
-#include "mvkp/oblique/view_pose.h"
+#include "mvkp/oblique/register_view.h"
 #include "output.h"
 
 namespace mvkp::cli {
@@ -63,10 +62,7 @@ Json Mat(const auto& m, int rows, int cols) {
 struct Stage2Args {
   double focal = 0, hfov = 50, res_m = 0;
   bool json = false;
-  ViewPoseOptions pose;
-  NadirTilesOptions tiles;
-  std::vector<double> scales = {1.0, 0.5, 0.3};
-  double nadir_gsd_m = 0.4;
+  ViewRegistrarOptions reg;
 };
 
 struct RegisterViewArgs : Stage2Args {
@@ -135,53 +131,25 @@ Json ReadJsonFile(const std::string& path) {
   }
 }
 
-// The depth raster, the nadir photo's tiles trained once, and the lifter:
+// The depth raster and the registrar (tiles trained once, lifter):
 // everything a view's registration needs.
 class Stage2 {
  public:
   Stage2(const geo::DepthRaster& d, const cv::Mat& nadir, const Stage1& s1, const Stage2Args& a)
-      : d_(d), s1_(s1), a_(a), nadir_gsd_m_(NadirGsd(nadir.size(), s1)),
-        tiles_(nadir, TileOptions(a, nadir_gsd_m_)), lifter_(d.z, s1.res_m, s1.nadir_to_depth, s1.lean) {}
+      : d_(d), s1_(s1), a_(a), reg_(d.z, s1.res_m, nadir, s1.nadir_to_depth, s1.lean, a.reg) {}
 
-  double train_ms() const { return tiles_.train_ms(); }
-  double nadir_gsd_m() const { return nadir_gsd_m_; }
-  std::size_t tiles() const { return tiles_.size(); }
+  double train_ms() const { return reg_.train_ms(); }
 
   // The view's camera as the JSON answer; `draw`: the view with the LiDAR's
   // building outlines reprojected ("" for none).
   Json Register(const std::string& view_path, const std::string& draw) const {
     Timer total;
     const cv::Mat view = LoadImageGray(view_path);
-    const double f = a_.focal > 0 ? a_.focal : (view.cols / 2.0) / std::tan(a_.hfov * CV_PI / 360);
-    const cv::Matx33d K(f, 0, (view.cols - 1) / 2.0, 0, f, (view.rows - 1) / 2.0, 0, 0, 1);
+    const cv::Matx33d K = ViewIntrinsics(view.size(), a_.hfov, a_.focal);
     const double read_ms = total.ElapsedMs();
-    // The view may show the ground several times finer than the nadir photo
-    // (0.15 m against 0.5 m): it is searched at each scale in turn until a
-    // camera is found.
-    double match_ms = 0, pose_ms = 0, used_scale = 0;
-    std::vector<NadirMatch> ms;
-    std::vector<cv::Point3d> Xs;
-    ViewPose p;
-    Timer tm;
-    for (double sc : a_.scales) {
-      tm.Restart();
-      std::vector<NadirMatch> mi = tiles_.Match(view, sc);
-      match_ms += tm.ElapsedMs();
-      tm.Restart();
-      std::vector<NadirMatch> kept;
-      std::vector<cv::Point3d> X;
-      std::vector<cv::Point2d> x;
-      for (const auto& c : mi) {
-        cv::Point3d w;
-        if (lifter_.Lift(cv::Point2d(c.nadir), &w)) X.push_back(w), x.emplace_back(c.view), kept.push_back(c);
-      }
-      ViewPose pi = EstimateViewPose(X, x, K, a_.pose, view.size());
-      pose_ms += tm.ElapsedMs();
-      if (used_scale == 0 || pi.ok || (!p.ok && pi.inliers > p.inliers))
-        ms = std::move(kept), Xs = std::move(X), p = std::move(pi), used_scale = sc;
-      if (p.ok) break;
-    }
-    const double res = s1_.res_m, z0 = lifter_.ground_height();
+    const ViewRegistration r = reg_.Register(view, K);
+    const ViewPose& p = r.pose;
+    const double res = s1_.res_m, z0 = reg_.lifter().ground_height();
     Json out;
     out["method"] = "mvkp-pnp";
     out["view"] = view_path;
@@ -203,59 +171,26 @@ class Stage2 {
       out["homography"] = nullptr;
     }
     Json mj = Json::array();
-    for (size_t k = 0; k < ms.size(); ++k)
-      mj.push_back({ms[k].nadir.x, ms[k].nadir.y, ms[k].view.x, ms[k].view.y, ms[k].distance,
-                    p.ok && p.inlier[k] ? 1 : 0});
-    out["matches"] = mj;
-    {
-      // where the agreeing pairs come from: tiles, and the heights above the ground they span
-      std::vector<int> tl, cells;
-      float zlo = 1e30f, zhi = -1e30f;
-      for (size_t k = 0; k < ms.size(); ++k) {
-        if (!(p.ok && p.inlier[k])) continue;
-        tl.push_back(ms[k].tile);
-        cells.push_back(std::clamp(int(4 * ms[k].view.y / view.rows), 0, 3) * 4 +
-                        std::clamp(int(4 * ms[k].view.x / view.cols), 0, 3));
-        zlo = std::min(zlo, float(Xs[k].z)), zhi = std::max(zhi, float(Xs[k].z));
-      }
-      std::sort(tl.begin(), tl.end());
-      out["inlier_tiles"] = std::unique(tl.begin(), tl.end()) - tl.begin();
-      std::sort(cells.begin(), cells.end());
-      out["inlier_cells"] = std::unique(cells.begin(), cells.end()) - cells.begin();  // of the view's 4 x 4
-      out["inlier_height_span_m"] = zhi >= zlo ? double(zhi - zlo) : 0.0;
+    for (size_t k = 0; k < r.matches.size(); ++k) {
+      const auto& c = r.matches[k];
+      mj.push_back({c.nadir.x, c.nadir.y, c.view.x, c.view.y, c.distance, p.ok && p.inlier[k] ? 1 : 0});
     }
-    out["tiles"] = tiles_.size();
-    out["nadir_gsd_m"] = nadir_gsd_m_;
-    out["lifted"] = ms.size();
+    out["matches"] = mj;
+    out["inlier_tiles"] = r.inlier_tiles;
+    out["inlier_cells"] = r.inlier_cells;  // of the view's 4 x 4
+    out["inlier_height_span_m"] = r.inlier_height_span_m;
+    out["tiles"] = reg_.tiles();
+    out["nadir_gsd_m"] = reg_.nadir_gsd_m();
+    out["lifted"] = r.matches.size();
     out["inliers"] = p.inliers;
     out["rms_px"] = p.rms_px;
-    out["scale"] = used_scale;
-    out["time_ms"] = {{"read", read_ms}, {"match", match_ms}, {"pose", pose_ms}, {"total", total.ElapsedMs()}};
+    out["scale"] = r.scale;
+    out["time_ms"] = {{"read", read_ms}, {"match", r.match_ms}, {"pose", r.pose_ms}, {"total", total.ElapsedMs()}};
     if (!draw.empty()) SaveImage(draw, Draw(view_path, p));
     return out;
   }
 
  private:
-  // Ground metres per nadir pixel at the photo's centre, from stage 1.
-  static double NadirGsd(cv::Size size, const Stage1& s1) {
-    const cv::Matx33d& H = s1.nadir_to_depth;
-    const double x = (size.width - 1) / 2.0, y = (size.height - 1) / 2.0;
-    const double w = H(2, 0) * x + H(2, 1) * y + H(2, 2);
-    const double u = (H(0, 0) * x + H(0, 1) * y + H(0, 2)) / w, v = (H(1, 0) * x + H(1, 1) * y + H(1, 2)) / w;
-    // Jacobian of the projective map at (x, y)
-    const double a = (H(0, 0) - u * H(2, 0)) / w, b = (H(0, 1) - u * H(2, 1)) / w;
-    const double c = (H(1, 0) - v * H(2, 0)) / w, e = (H(1, 1) - v * H(2, 1)) / w;
-    return s1.res_m * std::sqrt(std::abs(a * e - b * c));
-  }
-  // A photo finer than --nadir-gsd is trained resized to it: the views are
-  // searched down to a third of their size anyway, and the tiles (training
-  // time) grow with the photo's pixels.
-  static NadirTilesOptions TileOptions(const Stage2Args& a, double gsd) {
-    NadirTilesOptions t = a.tiles;
-    if (a.nadir_gsd_m > 0 && gsd > 0 && gsd < a.nadir_gsd_m) t.photo_scale = std::max(0.05, gsd / a.nadir_gsd_m);
-    return t;
-  }
-
   // The LiDAR's building outlines, at their roof heights, in the view.
   cv::Mat Draw(const std::string& view_path, const ViewPose& p) const {
     cv::Mat img = LoadImageColor(view_path);
@@ -282,16 +217,10 @@ class Stage2 {
   const geo::DepthRaster& d_;
   Stage1 s1_;
   const Stage2Args& a_;
-  double nadir_gsd_m_;
-  NadirTiles tiles_;
-  NadirLifter lifter_;
+  ViewRegistrar reg_;
 };
 
-void CheckStage2(const Stage2Args& a) {
-  a.pose.Check();
-  a.tiles.Check();
-  Require(!a.scales.empty(), ErrorCode::kInvalidArgument, "--scales: at least one scale");
-}
+void CheckStage2(const Stage2Args& a) { a.reg.Check(); }
 
 int RunRegisterView(RegisterViewArgs& a) {
   CheckStage2(a);
@@ -380,29 +309,29 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
       ->capture_default_str();
   c->add_option("--res", a->res_m, "depth raster cell size, metres (default: from stage 1 or the raster)")
       ->check(CLI::Range(0.01, 100.0));
-  c->add_option("--min-inliers", a->pose.min_inliers, "matches the camera must explain")
+  c->add_option("--min-inliers", a->reg.pose.min_inliers, "matches the camera must explain")
       ->check(CLI::Range(6, 100000))
       ->capture_default_str();
-  c->add_option("--min-inlier-ratio", a->pose.min_inlier_ratio, "share of the lifted matches the camera must explain")
+  c->add_option("--min-inlier-ratio", a->reg.pose.min_inlier_ratio, "share of the lifted matches the camera must explain")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
-  c->add_option("--tile", a->tiles.tile_px, "side of the nadir photo's tiles trained by MVKP, pixels")
+  c->add_option("--tile", a->reg.tiles.tile_px, "side of the nadir photo's tiles trained by MVKP, pixels")
       ->check(CLI::Range(64, 4096))
       ->capture_default_str();
-  c->add_option("--tile-stride", a->tiles.stride, "step between tiles, share of --tile (< 1: they overlap)")
+  c->add_option("--tile-stride", a->reg.tiles.stride, "step between tiles, share of --tile (< 1: they overlap)")
       ->check(CLI::Range(0.2, 1.0))
       ->capture_default_str();
-  c->add_option("--tile-views", a->tiles.train.views, "MVKP training views per tile")
+  c->add_option("--tile-views", a->reg.tiles.train.views, "MVKP training views per tile")
       ->check(CLI::Range(10, 1000))
       ->capture_default_str();
-  c->add_option("--tile-levels", a->tiles.train.levels, "MVKP training pyramid levels per tile (0: auto)")
+  c->add_option("--tile-levels", a->reg.tiles.train.levels, "MVKP training pyramid levels per tile (0: auto)")
       ->check(CLI::Range(0, 8))
       ->capture_default_str();
-  c->add_option("--nadir-gsd", a->nadir_gsd_m,
+  c->add_option("--nadir-gsd", a->reg.nadir_gsd_m,
                 "train a nadir photo finer than this (metres per pixel, from stage 1) resized to it (0: never)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
-  c->add_option("--scales", a->scales, "scales the view is searched at, in turn, until a camera is found")
+  c->add_option("--scales", a->reg.scales, "scales the view is searched at, in turn, until a camera is found")
       ->check(CLI::Range(0.05, 4.0))
       ->capture_default_str();
   c->add_flag("--json", a->json, "print the camera(s) and the correspondences as JSON");

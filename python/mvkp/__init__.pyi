@@ -216,8 +216,10 @@ class Database:
         """Copies the database to `out` while others may write it, as `mvkp db backup` (SQLite online backup, integrity-checked, renamed into place). Returns the number of targets copied. IoError if `out` exists (unless overwrite=True) or on a timeout."""
     def image_bytes(self, id: str) -> bytes:
         """The stored encoded target image (PNG/JPEG bytes; may be empty)."""
-    def add(self, id: str, image: numpy.ndarray, *, title: str = '', artist: str = '', year: str = '', url: str = '', meta: Any = None, image_bytes: Any = None, options: TrainOptions | None = None, view_model: ViewModel | str = 'mixed', views: int = 100, camera_views: int = 40, camera_min_tilt: float = 50.0, locations: int = 200, level_locations: float = 0.5, levels: int = 0, min_apparent_size: int = 40, min_level_size: int = 48, level_min_scale: float = 0.5, level_max_scale: float = 1.0, max_tilt_deg: float = 80.0, frontal_share: float = 0.35, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.25, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 320, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> None:
-        """Trains a target from `image` and adds it, as `mvkp db add` (its training defaults: max_object_side=320, other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. image_bytes: the encoded image to store (default: `image` as PNG)."""
+    def add(self, id: str, image: numpy.ndarray, *, title: str = '', artist: str = '', year: str = '', url: str = '', meta: Any = None, image_bytes: Any = None, allow_duplicate: bool = False, options: TrainOptions | None = None, view_model: ViewModel | str = 'mixed', views: int = 100, camera_views: int = 40, camera_min_tilt: float = 50.0, locations: int = 200, level_locations: float = 0.5, levels: int = 0, min_apparent_size: int = 40, min_level_size: int = 48, level_min_scale: float = 0.5, level_max_scale: float = 1.0, max_tilt_deg: float = 80.0, frontal_share: float = 0.35, keep_fraction: float = 0.0, select: Selection | str = 'stability', alpha: float = 0.5, rotation_views: int = 72, min_stability: int = 0, stats_views: TrainOptions.StatsViews | str = 'all', clusters: int = 20, kernels: int = 20, patch: int = 32, seed: int = 42, min_scale: float = 0.25, max_scale: float = 1.6, points_per_view: int = 600, track_radius: float = 2.0, view_noise: float = 2.0, view_blur: float = 1.0, orient: bool = True, smooth_sigma: float = 1.0, max_object_side: int = 320, min_locations: int = 12, kmeans_iterations: int = 10, progress: Callable[[int, int], None] | None = None) -> None:
+        """Trains a target from `image` and adds it, as `mvkp db add` (its training defaults: max_object_side=320, other keyword arguments are TrainOptions fields). meta: a dict or JSON object text. image_bytes: the encoded image to store (default: `image` as PNG). An image that shows a target already there raises InvalidArgumentError unless allow_duplicate=True."""
+    def update(self, id: str, *, title: Optional[str] | None = None, artist: Optional[str] | None = None, year: Optional[str] | None = None, url: Optional[str] | None = None, meta: Any = None) -> TargetInfo:
+        """Changes a target's metadata, as `mvkp db set` (fields left None keep their value; meta replaces the old object). Returns the new TargetInfo. The model and image stay."""
     def remove(self, id: str) -> bool:
         """Removes a target; False if there was none."""
     def recognizer(self, options: RecognizerOptions | None = None, *, match: MatchOptions | dict[str, Any] = ..., search: RecognizerSearch | str = 'exact', max_locations: int = 150, words_per_location: int = 5, query_words: int = 2, max_hamming: int = 6, keep_models: bool = False, probe_words: int = 8, max_candidates: int = 5, min_votes: int = 8, min_inliers: int = 12) -> Recognizer:
@@ -249,10 +251,11 @@ class DepthSegmentOptions:
     max_roughness: float
     refine_iterations: int
     min_area: float
+    min_width_px: float
     merge_corner_px: float
     merge_area_ratio: float
     skip_covered_markers: bool
-    def __init__(self, *, estimate_ground: bool = True, ground_window: int = 151, nodata: float = -9999.0, grid_step: int = 8, water_level: float = 2.0, range_max: float = 1.0, area_min: float = 64.0, lcc_radius: int = 3, lcc_sigma: float = 6.0, lcc_percent: float = 0.7, lcc_noise: float = 0.2, lcc_min_support: float = 0.2, max_roughness: float = 0.2, refine_iterations: int = 2, min_area: float = 40.0, merge_corner_px: float = 3.0, merge_area_ratio: float = 0.05, skip_covered_markers: bool = True) -> None: ...
+    def __init__(self, *, estimate_ground: bool = True, ground_window: int = 151, nodata: float = -9999.0, grid_step: int = 8, water_level: float = 2.0, range_max: float = 1.0, area_min: float = 64.0, lcc_radius: int = 3, lcc_sigma: float = 6.0, lcc_percent: float = 0.7, lcc_noise: float = 0.2, lcc_min_support: float = 0.2, max_roughness: float = 0.2, refine_iterations: int = 2, min_area: float = 40.0, min_width_px: float = 5.0, merge_corner_px: float = 3.0, merge_area_ratio: float = 0.05, skip_covered_markers: bool = True) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> DepthSegmentOptions: ...
     def check(self) -> None:
@@ -271,7 +274,11 @@ class EdgeEvidenceOptions:
     min_region_points: int
     min_region_contrast: float
     min_regions_on_edges: float
-    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45) -> None: ...
+    max_lean_px_per_m: float
+    min_lean_gain: float
+    min_lean_outlines: int
+    min_lean_height_spread_m: float
+    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45, max_lean_px_per_m: float = 0.8, min_lean_gain: float = 0.01, min_lean_outlines: int = 6, min_lean_height_spread_m: float = 4.0) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> EdgeEvidenceOptions: ...
     def check(self) -> None:
@@ -821,6 +828,15 @@ class Registration:
         """Depth region contours used (depth px)."""
     @property
     def time_ms(self) -> dict: ...
+    @property
+    def method(self) -> Any:
+        """register_aerial: which method answered, 'regions', 'single-pair' (one region pair's transform vouched for by the image check) or 'outlines' (None when not registered)"""
+    @property
+    def confidence(self) -> float:
+        """register_aerial: confidence of the answer in [0, 1] (0 when not registered)"""
+    @property
+    def lean_depth_px_per_m(self) -> Any:
+        """The photo's estimated lean (conventional orthophoto): roofs show this many depth px per metre of height from their footprints; photo_to_depth maps the ground. (0, 0) unless estimated; None when not registered."""
     def __bool__(self) -> bool: ...
 
 class RegistrationOptions:
@@ -847,12 +863,21 @@ class RegistrationOptions:
     max_rms_px: float
     edge_rms_factor: float
     edge_refine: bool
+    max_perspective: float
+    require_image_evidence: bool
+    single_pair_route: bool
+    single_pair_min_seed_contrast: float
+    single_pair_poses: int
+    single_pair_distinct_px: float
+    single_pair_min_outlines: int
+    single_pair_min_on_edges: float
+    single_pair_min_confidence: float
     use_principal_directions: bool
     principal_tolerance_deg: float
     model: RegistrationOptions.Model | str
     perspective_min_pairs: int
     seed: int
-    def __init__(self, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> None: ...
+    def __init__(self, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, max_perspective: float = 0.25, require_image_evidence: bool = True, single_pair_route: bool = True, single_pair_min_seed_contrast: float = 1.2, single_pair_poses: int = 8, single_pair_distinct_px: float = 20.0, single_pair_min_outlines: int = 8, single_pair_min_on_edges: float = 0.5, single_pair_min_confidence: float = 0.5, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> RegistrationOptions: ...
     def check(self) -> None:
@@ -1018,6 +1043,22 @@ class ViewModel:
     @property
     def value(self) -> int: ...
 
+class ViewRegistrar:
+    """Stage 2 of aerial registration (issue 22): the camera of oblique views of the area of a nadir photo, through the photo's stage-1 registration (as `mvkp register-view` / `register-all`). Built once per nadir photo (trains MVKP on its tiles), then register() per view."""
+    def __init__(self, depth: numpy.ndarray, nadir: Any, nadir_to_depth: Any, *, res_m: float, lean: tuple[float, float] = (0.0, 0.0), tile_px: int = 320, nadir_gsd_m: float = 0.4, scales: list[float] = [1.0, 0.5, 0.3], min_inliers: int = 15) -> None:
+        """depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; lean: stage 1's lean_depth_px_per_m."""
+    def register(self, view: Any, *, hfov: float = 50.0, focal: float = 0.0) -> dict:
+        """The camera of an oblique view (gray or BGR) with a pinhole of horizontal field of view hfov degrees (or focal length focal px), principal point at the centre. A dict: ok, reason, camera ((3, 4): world metres east-north-up -> view px, or None), K, R, centre_m, matches ((n, 4) nadir x, y, view x, y), inlier ((n,) bool), inliers, rms_px, scale, time_ms. 'No registration' is ok False, not an error."""
+    @property
+    def tiles(self) -> Any:
+        """MVKP tiles trained"""
+    @property
+    def train_ms(self) -> Any:
+        """training time, ms"""
+    @property
+    def nadir_gsd_m(self) -> Any:
+        """metres per nadir pixel (from stage 1)"""
+
 def BruteForceIndex(data: numpy.ndarray, labels: Any = None) -> KnnIndex:
     """An exact linear-scan index (AVX2 when available)."""
 
@@ -1090,16 +1131,16 @@ def read_optical(path: str) -> numpy.ndarray:
 def recognition_match_defaults() -> MatchOptions:
     """The MatchOptions recognition starts from (1000 points, dynamic ratio)."""
 
-def register_aerial(depth: numpy.ndarray, photo: numpy.ndarray, *, photo_max_side: int = 1200, depth_options: DepthSegmentOptions | None = None, optical_options: OpticalSegmentOptions | None = None, edge_options: EdgeEvidenceOptions | None = None, options: RegistrationOptions | None = None, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
-    """Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as `mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields (model='auto', min_regions=4, seed=1, ...); depth_options / optical_options are DepthSegmentOptions / OpticalSegmentOptions."""
+def register_aerial(depth: numpy.ndarray, photo: numpy.ndarray, *, photo_max_side: int = 1200, depth_options: DepthSegmentOptions | None = None, optical_options: OpticalSegmentOptions | None = None, edge_options: EdgeEvidenceOptions | None = None, options: RegistrationOptions | None = None, method: str = 'auto', photo_res_m: float = 0.0, depth_res_m: float = 0.0, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, max_perspective: float = 0.25, require_image_evidence: bool = True, single_pair_route: bool = True, single_pair_min_seed_contrast: float = 1.2, single_pair_poses: int = 8, single_pair_distinct_px: float = 20.0, single_pair_min_outlines: int = 8, single_pair_min_on_edges: float = 0.5, single_pair_min_confidence: float = 0.5, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
+    """Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as `mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields (model='auto', min_regions=4, seed=1, ...); depth_options / optical_options are DepthSegmentOptions / OpticalSegmentOptions. method: 'auto' (regions, then the outline search when they find nothing), 'regions' or 'outlines'; photo_res_m / depth_res_m (metres per pixel, 0 unknown) narrow the outline search's scales. The result's method and confidence say which method answered and how surely."""
 
-def register_contours(photo_regions: Any, depth_regions: Any, options: RegistrationOptions | None = None, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
+def register_contours(photo_regions: Any, depth_regions: Any, options: RegistrationOptions | None = None, *, shape: ShapeContextOptions | dict[str, Any] = ..., partial_descriptors: bool = True, partial_min_corners: int = 6, max_partials_per_region: int = 4, partial_rank_penalty: float = 1.0, min_region_area: float = 16.0, candidates_per_region: int = 3, shifts_per_pair: int = 4, max_hypotheses: int = 600, min_scale: float = 0.2, max_scale: float = 5.0, inlier_px: float = 6.0, inlier_fraction: float = 0.7, max_area_ratio: float = 2.0, grow_tolerance: float = 1.5, min_regions: int = 4, min_regions_with_evidence: int = 3, min_inlier_ratio: float = 0.3, min_inlier_ratio_with_evidence: float = 0.2, max_rms_px: float = 2.5, edge_rms_factor: float = 2.0, edge_refine: bool = True, max_perspective: float = 0.25, require_image_evidence: bool = True, single_pair_route: bool = True, single_pair_min_seed_contrast: float = 1.2, single_pair_poses: int = 8, single_pair_distinct_px: float = 20.0, single_pair_min_outlines: int = 8, single_pair_min_on_edges: float = 0.5, single_pair_min_confidence: float = 0.5, use_principal_directions: bool = False, principal_tolerance_deg: float = 12.0, model: RegistrationOptions.Model | str = 'auto', perspective_min_pairs: int = 4, seed: int = 1) -> Registration:
     """Registers photo region contours onto depth region contours (lists of (n, 2) arrays, or the regions segment_optical / segment_depth return). Keyword arguments are RegistrationOptions fields."""
 
 def save_image(path: str, image: numpy.ndarray) -> None:
     """Writes an image (format from the extension); IoError if it cannot."""
 
-def segment_depth(depth: numpy.ndarray, options: DepthSegmentOptions | None = None, *, estimate_ground: bool = True, ground_window: int = 151, nodata: float = -9999.0, grid_step: int = 8, water_level: float = 2.0, range_max: float = 1.0, area_min: float = 64.0, lcc_radius: int = 3, lcc_sigma: float = 6.0, lcc_percent: float = 0.7, lcc_noise: float = 0.2, lcc_min_support: float = 0.2, max_roughness: float = 0.2, refine_iterations: int = 2, min_area: float = 40.0, merge_corner_px: float = 3.0, merge_area_ratio: float = 0.05, skip_covered_markers: bool = True) -> list[BuildingRegion]:
+def segment_depth(depth: numpy.ndarray, options: DepthSegmentOptions | None = None, *, estimate_ground: bool = True, ground_window: int = 151, nodata: float = -9999.0, grid_step: int = 8, water_level: float = 2.0, range_max: float = 1.0, area_min: float = 64.0, lcc_radius: int = 3, lcc_sigma: float = 6.0, lcc_percent: float = 0.7, lcc_noise: float = 0.2, lcc_min_support: float = 0.2, max_roughness: float = 0.2, refine_iterations: int = 2, min_area: float = 40.0, min_width_px: float = 5.0, merge_corner_px: float = 3.0, merge_area_ratio: float = 0.05, skip_covered_markers: bool = True) -> list[BuildingRegion]:
     """Building regions of a depth image ((H, W) float32 metres, NaN = no data), largest first. Keyword arguments are DepthSegmentOptions fields."""
 
 def segment_optical(photo: numpy.ndarray, options: OpticalSegmentOptions | None = None, *, pre_blur_sigma: float = 1.0, thin_suppress: int = 0, use_vegetation: bool = True, veg_green_margin: int = 8, veg_exg: int = 14, veg_exg_rel: float = 0.1, use_shadow: bool = True, shadow_intensity: int = 60, shadow_channel: int = 80, canny_low: int = 40, canny_high: int = 100, split_edges: bool = True, edge_probe: int = 3, hue_similar: int = 8, sat_min_for_hue: int = 40, gray_similar: int = 22, selective_smoothing: bool = True, barrier_dilate: int = 0, seed_cell: int = 16, use_fractal: bool = True, fbm: FbmModel = ..., ofe_ratio: float = 0.6, range_tolerance: int = 10, range_tolerance_strict: int = 3, range_soft_max: int = 12, range_len: int = 48, max_chroma_step: float = 0.1, color_margin: int = 14, irep_penalty: float = 1.0, min_area: int = 120, max_area_fraction: float = 0.2, max_upp: float = 0.25, upp_scale: float = 0.1, merge: bool = True, merge_gap: int = 2, merge_min_contact: float = 0.35, merge_max_true_edge: float = 0.35, merge_max_chroma: float = 0.05, regulate: bool = True, lda: RegionLda = ..., lda_margin: float = -0.25, lda_border_relax: float = 1.0, max_elongation: float = 6.0, min_rectilinear: float = 0.0, min_shadow_ring: float = 0.0, shadow_ring_ratio: float = 0.7, max_elongation_unshaded: float = 3.0, shadow_ring_evidence: float = 0.2, min_solidity: float = 0.55, contour_dilate: int = 1) -> list[PhotoRegion]:

@@ -14,6 +14,7 @@
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
 #include "mvkp/geo/raster.h"
+#include "mvkp/oblique/register_view.h"
 #include "mvkp/ortho/optical_regions.h"
 #include "mvkp/ortho/ortho_models.h"
 #include "mvkp/shapes/register.h"
@@ -351,6 +352,97 @@ void BindAerial(py::module_& m) {
       "OpticalSegmentOptions. method: 'auto' (regions, then the outline search when they find nothing), "
       "'regions' or 'outlines'; photo_res_m / depth_res_m (metres per pixel, 0 unknown) narrow the outline "
       "search's scales. The result's method and confidence say which method answered and how surely.");
+
+  // ---------------------------------------------------------------- stage 2 (issue 22)
+  py::class_<ViewRegistrar, std::shared_ptr<ViewRegistrar>>(
+      m, "ViewRegistrar",
+      "Stage 2 of aerial registration (issue 22): the camera of oblique views of the area of a nadir photo, "
+      "through the photo's stage-1 registration (as `mvkp register-view` / `register-all`). Built once per "
+      "nadir photo (trains MVKP on its tiles), then register() per view.")
+      .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
+                       std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
+                       int min_inliers) {
+             ViewRegistrarOptions o;
+             o.tiles.tile_px = tile_px;
+             o.nadir_gsd_m = nadir_gsd_m;
+             o.scales = std::move(scales);
+             o.pose.min_inliers = min_inliers;
+             o.Check();
+             ImageArg z = ToFloatImage(depth, "depth");
+             ImageArg g = ToImage(nadir, "nadir", ImageKind::kGray);
+             const cv::Matx33d H = ArrayToMatx33(nadir_to_depth, "nadir_to_depth");
+             if (!(res_m > 0)) throw py::value_error("res_m must be > 0 (metres per depth cell)");
+             py::gil_scoped_release release;
+             return std::make_shared<ViewRegistrar>(cv::Mat1f(z.mat), res_m, g.mat, H,
+                                                    cv::Point2d(lean.first, lean.second), o);
+           }),
+           py::arg("depth"), py::arg("nadir"), py::arg("nadir_to_depth"), py::kw_only(), py::arg("res_m"),
+           py::arg("lean") = std::pair<double, double>(0.0, 0.0), py::arg("tile_px") = 320,
+           py::arg("nadir_gsd_m") = 0.4, py::arg("scales") = std::vector<double>{1.0, 0.5, 0.3},
+           py::arg("min_inliers") = 15,
+           "depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); "
+           "nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; "
+           "lean: stage 1's lean_depth_px_per_m.")
+      .def(
+          "register",
+          [](const ViewRegistrar& reg, py::handle view, double hfov, double focal) {
+            ImageArg g = ToImage(view, "view", ImageKind::kGray);
+            const cv::Matx33d K = ViewIntrinsics(g.mat.size(), hfov, focal);
+            ViewRegistration r;
+            {
+              py::gil_scoped_release release;
+              r = reg.Register(g.mat, K);
+            }
+            const ViewPose& p = r.pose;
+            py::dict out;
+            out["ok"] = p.ok;
+            out["reason"] = p.ok ? p.reason : "no registration: " + p.reason;
+            out["K"] = Matx33ToArray(K);
+            if (p.ok) {
+              py::array_t<double> P({3, 4});
+              auto v = P.mutable_unchecked<2>();
+              for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 4; ++j) v(i, j) = p.camera(i, j);
+              out["camera"] = P;
+              out["R"] = Matx33ToArray(p.R);
+              out["centre_m"] = py::make_tuple(p.centre_m[0], p.centre_m[1], p.centre_m[2]);
+            } else {
+              out["camera"] = py::none();
+              out["R"] = py::none();
+              out["centre_m"] = py::none();
+            }
+            py::array_t<float> M({py::ssize_t(r.matches.size()), py::ssize_t(4)});
+            py::array_t<bool> inl({py::ssize_t(r.matches.size())});
+            auto mv = M.mutable_unchecked<2>();
+            auto iv = inl.mutable_unchecked<1>();
+            for (std::size_t k = 0; k < r.matches.size(); ++k) {
+              mv(k, 0) = r.matches[k].nadir.x, mv(k, 1) = r.matches[k].nadir.y;
+              mv(k, 2) = r.matches[k].view.x, mv(k, 3) = r.matches[k].view.y;
+              iv(k) = p.ok && p.inlier[k];
+            }
+            out["matches"] = M;
+            out["inlier"] = inl;
+            out["inliers"] = p.inliers;
+            out["rms_px"] = p.rms_px;
+            out["scale"] = r.scale;
+            py::dict t;
+            t["match"] = r.match_ms;
+            t["pose"] = r.pose_ms;
+            out["time_ms"] = t;
+            return out;
+          },
+          py::arg("view"), py::kw_only(), py::arg("hfov") = 50.0, py::arg("focal") = 0.0,
+          "The camera of an oblique view (gray or BGR) with a pinhole of horizontal field of view hfov degrees "
+          "(or focal length focal px), principal point at the centre. A dict: ok, reason, camera ((3, 4): world "
+          "metres east-north-up -> view px, or None), K, R, centre_m, matches ((n, 4) nadir x, y, view x, y), "
+          "inlier ((n,) bool), inliers, rms_px, scale, time_ms. 'No registration' is ok False, not an error.")
+      .def_property_readonly("tiles", &ViewRegistrar::tiles, "MVKP tiles trained")
+      .def_property_readonly("train_ms", &ViewRegistrar::train_ms, "training time, ms")
+      .def_property_readonly("nadir_gsd_m", &ViewRegistrar::nadir_gsd_m, "metres per nadir pixel (from stage 1)")
+      .def("__repr__", [](const ViewRegistrar& r) {
+        return "ViewRegistrar(tiles=" + std::to_string(r.tiles()) + ", nadir_gsd_m=" + std::to_string(r.nadir_gsd_m()) +
+               ")";
+      });
 
   m.def(
       "read_depth",

@@ -87,3 +87,49 @@ def test_register_aerial_equals_cli(city, tmp_path):
     if r.ok:
         assert j["model"] == r.model
         np.testing.assert_allclose(np.array(j["homography"]), r.homography, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.skipif(not __import__("os").environ.get("MVKP_CLI"), reason="MVKP_CLI not set")
+def test_view_registrar_equals_cli(tmp_path):
+    """Stage 2 (issue 22): ViewRegistrar gives the cameras `mvkp register-all` gives, right on the check points."""
+    import json
+    import os
+    import subprocess
+
+    cli = os.environ["MVKP_CLI"]
+    subprocess.run([cli, "synth-oblique", "-o", str(tmp_path), "--n", "1", "--views", "2", "--seed", "2", "--style",
+                    "dense", "--tilt", "35", "50", "--gsd", "0.25", "0.4"], check=True, capture_output=True, timeout=120)
+    d = tmp_path / "city_0000"
+    t = json.load(open(d / "truth.json"))
+    lean = [x / t["res_m"] for x in t["lean_m_per_m"]]
+    json.dump({"homography": t["photo_to_depth"], "lean_depth_px_per_m": lean}, open(d / "stage1.json", "w"))
+    depth, _ = mvkp.read_depth(str(d / "depth.tif"))
+    nadir = mvkp.read_optical(str(d / "photo.png"))
+    reg = mvkp.ViewRegistrar(depth, nadir, np.array(t["photo_to_depth"]), res_m=t["res_m"], lean=tuple(lean))
+    assert reg.tiles >= 4 and reg.train_ms > 0 and "ViewRegistrar(" in repr(reg)
+    views = [str(d / ("oblique_%02d.png" % k)) for k in range(2)]
+    out = subprocess.run([cli, "register-all", str(d / "depth.tif"), str(d / "photo.png")] + views +
+                         ["--stage1", str(d / "stage1.json"), "--res", str(t["res_m"]), "--json"],
+                         capture_output=True, text=True, timeout=240, check=True)
+    cli_views = json.loads(out.stdout)["views"]
+    answered = 0
+    for k, path in enumerate(views):
+        r = reg.register(mvkp.read_optical(path), hfov=50.0)
+        assert r["ok"] == cli_views[k]["ok"], (r["reason"], cli_views[k]["reason"])
+        assert r["matches"].shape == (len(r["inlier"]), 4) and r["inlier"].sum() == r["inliers"]
+        if not r["ok"]:
+            assert r["camera"] is None and r["reason"].startswith("no registration")
+            continue
+        answered += 1
+        np.testing.assert_allclose(r["camera"], np.array(cli_views[k]["camera"]), rtol=1e-9, atol=1e-6)
+        v = json.load(open(d / ("oblique_%02d.json" % k)))
+        X = np.array([c["world_m"] + [1] for c in v["check_points"]]) @ r["camera"].T
+        err = np.linalg.norm(X[:, :2] / X[:, 2:] - np.array([c["oblique_px"] for c in v["check_points"]]), axis=1)
+        assert err.mean() <= 5, err.mean()
+    assert answered >= 1
+    with pytest.raises(ValueError):
+        mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0)
+    with pytest.raises(ValueError):
+        mvkp.ViewRegistrar(depth, nadir, np.eye(2), res_m=0.5)
+    with pytest.raises(mvkp.InvalidArgumentError):
+        mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0.5, tile_px=10)

@@ -1,0 +1,100 @@
+#include "mvkp/oblique/register_view.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mvkp/core/error.h"
+#include "mvkp/core/timer.h"
+
+namespace mvkp {
+
+void ViewRegistrarOptions::Check() const {
+  tiles.Check();
+  pose.Check();
+  Require(!scales.empty(), ErrorCode::kInvalidArgument, "ViewRegistrarOptions: at least one scale");
+  for (double s : scales)
+    Require(s >= 0.05 && s <= 4, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: scales must be in [0.05, 4]");
+  Require(nadir_gsd_m >= 0 && nadir_gsd_m <= 100, ErrorCode::kInvalidArgument,
+          "ViewRegistrarOptions: nadir_gsd_m must be in [0, 100]");
+}
+
+double NadirGsd(cv::Size size, const cv::Matx33d& H, double res_m) {
+  const double x = (size.width - 1) / 2.0, y = (size.height - 1) / 2.0;
+  const double w = H(2, 0) * x + H(2, 1) * y + H(2, 2);
+  if (!(std::abs(w) > 1e-12)) return 0;
+  const double u = (H(0, 0) * x + H(0, 1) * y + H(0, 2)) / w, v = (H(1, 0) * x + H(1, 1) * y + H(1, 2)) / w;
+  // Jacobian of the projective map at (x, y)
+  const double a = (H(0, 0) - u * H(2, 0)) / w, b = (H(0, 1) - u * H(2, 1)) / w;
+  const double c = (H(1, 0) - v * H(2, 0)) / w, e = (H(1, 1) - v * H(2, 1)) / w;
+  return res_m * std::sqrt(std::abs(a * e - b * c));
+}
+
+cv::Matx33d ViewIntrinsics(cv::Size size, double hfov_deg, double focal_px) {
+  Require(size.width > 0 && size.height > 0, ErrorCode::kInvalidArgument, "ViewIntrinsics: empty view");
+  Require(focal_px > 0 || (hfov_deg > 0 && hfov_deg < 180), ErrorCode::kInvalidArgument,
+          "ViewIntrinsics: hfov must be in (0, 180) degrees, or the focal length > 0");
+  const double f = focal_px > 0 ? focal_px : (size.width / 2.0) / std::tan(hfov_deg * CV_PI / 360);
+  return {f, 0, (size.width - 1) / 2.0, 0, f, (size.height - 1) / 2.0, 0, 0, 1};
+}
+
+namespace {
+
+NadirTilesOptions TileOptions(const ViewRegistrarOptions& o, double gsd) {
+  o.Check();
+  NadirTilesOptions t = o.tiles;
+  if (o.nadir_gsd_m > 0 && gsd > 0 && gsd < o.nadir_gsd_m) t.photo_scale = std::max(0.05, gsd / o.nadir_gsd_m);
+  return t;
+}
+
+}  // namespace
+
+ViewRegistrar::ViewRegistrar(const cv::Mat1f& depth, double res_m, const cv::Mat& nadir,
+                             const cv::Matx33d& nadir_to_depth, cv::Point2d lean, const ViewRegistrarOptions& options)
+    : options_(options),
+      nadir_gsd_m_(NadirGsd(nadir.size(), nadir_to_depth, res_m)),
+      tiles_(nadir, TileOptions(options, nadir_gsd_m_)),
+      lifter_(depth, res_m, nadir_to_depth, lean) {}
+
+ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d& K) const {
+  Require(!view.empty() && view.type() == CV_8UC1, ErrorCode::kInvalidArgument,
+          "ViewRegistrar: an 8-bit grey view is required");
+  ViewRegistration r;
+  Timer tm;
+  for (double sc : options_.scales) {
+    tm.Restart();
+    std::vector<NadirMatch> found = tiles_.Match(view, sc);
+    r.match_ms += tm.ElapsedMs();
+    tm.Restart();
+    std::vector<NadirMatch> kept;
+    std::vector<cv::Point3d> X;
+    std::vector<cv::Point2d> x;
+    for (const auto& c : found) {
+      cv::Point3d w;
+      if (lifter_.Lift(cv::Point2d(c.nadir), &w)) X.push_back(w), x.emplace_back(c.view), kept.push_back(c);
+    }
+    ViewPose p = EstimateViewPose(X, x, K, options_.pose, view.size());
+    r.pose_ms += tm.ElapsedMs();
+    if (r.scale == 0 || p.ok || (!r.pose.ok && p.inliers > r.pose.inliers))
+      r.matches = std::move(kept), r.world = std::move(X), r.pose = std::move(p), r.scale = sc;
+    if (r.pose.ok) break;
+  }
+  if (r.pose.ok) {
+    std::vector<int> tiles, cells;
+    float zlo = 1e30f, zhi = -1e30f;
+    for (std::size_t k = 0; k < r.matches.size(); ++k) {
+      if (!r.pose.inlier[k]) continue;
+      tiles.push_back(r.matches[k].tile);
+      cells.push_back(std::clamp(int(4 * r.matches[k].view.y / view.rows), 0, 3) * 4 +
+                      std::clamp(int(4 * r.matches[k].view.x / view.cols), 0, 3));
+      zlo = std::min(zlo, float(r.world[k].z)), zhi = std::max(zhi, float(r.world[k].z));
+    }
+    std::sort(tiles.begin(), tiles.end());
+    std::sort(cells.begin(), cells.end());
+    r.inlier_tiles = int(std::unique(tiles.begin(), tiles.end()) - tiles.begin());
+    r.inlier_cells = int(std::unique(cells.begin(), cells.end()) - cells.begin());
+    r.inlier_height_span_m = zhi >= zlo ? double(zhi - zlo) : 0.0;
+  }
+  return r;
+}
+
+}  // namespace mvkp

@@ -1,0 +1,71 @@
+// Stage 2 of aerial registration by MVKP (issue 22, thesis §7.3.1): the
+// camera of an oblique view from the nadir photo's tiles (nadir_tiles.h),
+// their matches lifted to 3-D through stage 1 (view_pose.h). What `mvkp
+// register-view` / `register-all` and the Python ViewRegistrar run.
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "mvkp/oblique/nadir_tiles.h"
+#include "mvkp/oblique/view_pose.h"
+
+namespace mvkp {
+
+struct ViewRegistrarOptions {
+  NadirTilesOptions tiles;
+  ViewPoseOptions pose;
+  // The view is searched at each scale in turn (area-averaged) until a camera
+  // is found: views show the ground 0.15-0.6 m per pixel, the photo 0.4 m or
+  // coarser.
+  std::vector<double> scales = {1.0, 0.5, 0.3};
+  // A nadir photo finer than this (metres per pixel at its centre, from stage
+  // 1) is tiled resized to it: training on the tuning set 209 -> 103 s, and
+  // 94 views right instead of 88. 0: never.
+  double nadir_gsd_m = 0.4;
+  void Check() const;  // throws Error(kInvalidArgument)
+};
+
+struct ViewRegistration {
+  ViewPose pose;                     // pose.ok: a camera; else pose.reason says why not
+  std::vector<NadirMatch> matches;   // the lifted pairs PnP saw (pose.inlier flags them)
+  std::vector<cv::Point3d> world;    // their 3-D points
+  double scale = 0;                  // the view scale that answered (or came closest)
+  double match_ms = 0, pose_ms = 0;
+  int inlier_tiles = 0, inlier_cells = 0;  // where the agreeing pairs come from
+  double inlier_height_span_m = 0;
+};
+
+class ViewRegistrar {
+ public:
+  // `nadir` 8-bit grey; stage 1: `nadir_to_depth` (nadir px -> depth px) and
+  // `lean_px_per_m` (depth px per metre of height); `depth` the DSM (metres,
+  // NaN no return) with cell size `res_m`. Trains the tiles.
+  ViewRegistrar(const cv::Mat1f& depth, double res_m, const cv::Mat& nadir, const cv::Matx33d& nadir_to_depth,
+                cv::Point2d lean_px_per_m, const ViewRegistrarOptions& options = {});
+
+  // The camera of an 8-bit grey view with intrinsics K (no distortion).
+  ViewRegistration Register(const cv::Mat& view, const cv::Matx33d& K) const;
+
+  double train_ms() const { return tiles_.train_ms(); }
+  double nadir_gsd_m() const { return nadir_gsd_m_; }   // of the photo given
+  std::size_t tiles() const { return tiles_.size(); }
+  const NadirLifter& lifter() const { return lifter_; }
+
+ private:
+  ViewRegistrarOptions options_;
+  double nadir_gsd_m_;
+  NadirTiles tiles_;
+  NadirLifter lifter_;
+};
+
+// Ground metres per nadir pixel at the centre of a photo of `size`, from
+// stage 1's homography and the depth cell size.
+double NadirGsd(cv::Size size, const cv::Matx33d& nadir_to_depth, double res_m);
+
+// A pinhole K for a view of `size` with horizontal field of view `hfov_deg`
+// (or focal length `focal_px` when > 0), principal point at the centre.
+cv::Matx33d ViewIntrinsics(cv::Size size, double hfov_deg, double focal_px = 0);
+
+}  // namespace mvkp
