@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #include <nlohmann/json.hpp>
@@ -365,6 +366,17 @@ void SaveOblique(const ObliqueView& v, const std::string& dir, const std::string
   std::ofstream f(path);
   f << j.dump(1) << "\n";
   if (!f) throw Error(ErrorCode::kIo, path + ": cannot write");
+}
+
+double CheckPointError(const cv::Matx34d& P, const ObliqueView& v) {
+  if (v.checks.empty()) return std::numeric_limits<double>::infinity();
+  double sum = 0;
+  for (const auto& c : v.checks) {
+    const cv::Vec3d p = P * cv::Vec4d(c.world.x, c.world.y, c.world.z, 1);
+    if (!(p[2] > 0)) return std::numeric_limits<double>::infinity();
+    sum += std::hypot(p[0] / p[2] - c.oblique_px.x, p[1] / p[2] - c.oblique_px.y);
+  }
+  return sum / double(v.checks.size());
 }
 
 }  // namespace mvkp

@@ -74,4 +74,10 @@ ObliqueView RenderOblique(const City& city, const ObliqueOptions& options, std::
 // options, check points). Throws Error(kIo) when a file cannot be written.
 void SaveOblique(const ObliqueView& view, const std::string& dir, const std::string& stem);
 
+// How far `camera` (world metres -> view px) is from the truth: the mean
+// distance between its projections of the view's check points and their
+// true pixels (the evaluation's measure; success is <= 5 px). Infinity
+// for a view without check points or a point behind the camera.
+double CheckPointError(const cv::Matx34d& camera, const ObliqueView& view);
+
 }  // namespace mvkp

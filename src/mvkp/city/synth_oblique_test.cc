@@ -66,6 +66,11 @@ TEST(SynthOblique, CameraMatrixAgreesWithTheRendering) {
       // the camera looks down at the asked tilt, and is a proper rotation
       EXPECT_NEAR(std::acos(-v.R(2, 2)) * 180 / CV_PI, tilt, 1e-6);
       EXPECT_NEAR(cv::determinant(cv::Mat(v.R)), 1.0, 1e-9);
+      // the evaluation's measure: 0 for the true camera, about 10 px for one 10 px to the side
+      EXPECT_LT(CheckPointError(v.camera, v), 1e-6);
+      cv::Matx34d off = v.camera;
+      for (int j = 0; j < 4; ++j) off(0, j) += 10 * v.camera(2, j);  // x' = x + 10
+      EXPECT_NEAR(CheckPointError(off, v), 10.0, 1e-6);
     }
   }
 }

@@ -36,15 +36,6 @@ ViewPose Camera(const City& city, const NadirTiles& tiles, const ObliqueView& vi
   return p;
 }
 
-double MeanReprojection(const cv::Matx34d& P, const ObliqueView& v) {
-  double sum = 0;
-  for (const auto& c : v.checks) {
-    const cv::Vec3d p = P * cv::Vec4d(c.world.x, c.world.y, c.world.z, 1);
-    sum += std::hypot(p[0] / p[2] - c.oblique_px.x, p[1] / p[2] - c.oblique_px.y);
-  }
-  return sum / double(v.checks.size());
-}
-
 City MakeTown(std::uint64_t seed) {
   CityOptions o;
   o.width = o.height = 500;
@@ -80,7 +71,7 @@ TEST(NadirTiles, FindTheCameraOfObliqueViews) {
     const ViewPose p = Camera(city, tiles, v);
     if (!p.ok) continue;
     ++found;
-    EXPECT_LT(MeanReprojection(p.camera, v), 3.0) << "tilt " << tilt << " gsd " << gsd;
+    EXPECT_LT(CheckPointError(p.camera, v), 3.0) << "tilt " << tilt << " gsd " << gsd;
   }
   EXPECT_GE(found, 4);
 }

@@ -31,15 +31,6 @@ Scene MakeScene(const std::string& style, double tilt, std::uint64_t seed) {
   return s;
 }
 
-double MeanReprojection(const cv::Matx34d& P, const ObliqueView& v) {
-  double sum = 0;
-  for (const auto& c : v.checks) {
-    const cv::Vec3d p = P * cv::Vec4d(c.world.x, c.world.y, c.world.z, 1);
-    sum += std::hypot(p[0] / p[2] - c.oblique_px.x, p[1] / p[2] - c.oblique_px.y);
-  }
-  return sum / double(v.checks.size());
-}
-
 // Lifting a nadir pixel through the true stage 1 (homography and lean)
 // lands on the check point's world position: open ground exactly, roof
 // corners (on the roof's edge) to within a metre.
@@ -85,7 +76,7 @@ TEST(ViewPose, CameraFromLiftedPairsAmongOutliers) {
       X.push_back(X[g() % n]), x.push_back(cv::Point2d(double(g() % 480), double(g() % 360)));
     const ViewPose p = EstimateViewPose(X, x, s.view.K);
     ASSERT_TRUE(p.ok) << p.reason;
-    EXPECT_LT(MeanReprojection(p.camera, s.view), 1.5) << "tilt " << tilt;
+    EXPECT_LT(CheckPointError(p.camera, s.view), 1.5) << "tilt " << tilt;
     EXPECT_LT(cv::norm(p.centre_m - s.view.centre_m), 3.0);
     // outliers only: no camera
     std::vector<cv::Point3d> Xw(X.begin() + long(n), X.end());
