@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -196,7 +197,8 @@ class Stage2 {
     cv::Mat img = LoadImageColor(view_path);
     if (!p.ok) return img;
     const double res = s1_.res_m;
-    for (const auto& r : SegmentDepth(d_.z)) {
+    if (!outlines_) outlines_ = SegmentDepth(d_.z);  // once for all the views drawn
+    for (const auto& r : *outlines_) {
       std::vector<cv::Point> poly;
       for (const auto& q : r.contour) {
         float z = -1e9f;
@@ -218,6 +220,7 @@ class Stage2 {
   Stage1 s1_;
   const Stage2Args& a_;
   ViewRegistrar reg_;
+  mutable std::optional<std::vector<BuildingRegion>> outlines_;  // the depth's building regions, for Draw
 };
 
 void CheckStage2(const Stage2Args& a) { a.reg.Check(); }
