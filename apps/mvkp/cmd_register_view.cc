@@ -334,6 +334,14 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
                 "train a nadir photo finer than this (metres per pixel, from stage 1) resized to it (0: never)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  c->add_option("--max-height-step", a->reg.max_height_step_m,
+                 "drop pairs whose nadir point lies within --step-radius tile pixels of a height step above this, "
+                 "metres (0: keep all)")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
+  c->add_option("--step-radius", a->reg.step_radius_px, "radius of the height-step test, pixels of the nadir tiles")
+      ->check(CLI::Range(0.0, 20.0))
+      ->capture_default_str();
   c->add_option("--scales", a->reg.scales, "scales the view is searched at, in turn, until a camera is found")
       ->check(CLI::Range(0.05, 4.0))
       ->capture_default_str();

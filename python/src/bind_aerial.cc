@@ -361,10 +361,11 @@ void BindAerial(py::module_& m) {
       "nadir photo (trains MVKP on its tiles), then register() per view.")
       .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
                        std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
-                       int min_inliers) {
+                       int min_inliers, double max_height_step_m) {
              ViewRegistrarOptions o;
              o.tiles.tile_px = tile_px;
              o.nadir_gsd_m = nadir_gsd_m;
+             o.max_height_step_m = max_height_step_m;
              o.scales = std::move(scales);
              o.pose.min_inliers = min_inliers;
              o.Check();
@@ -379,10 +380,11 @@ void BindAerial(py::module_& m) {
            py::arg("depth"), py::arg("nadir"), py::arg("nadir_to_depth"), py::kw_only(), py::arg("res_m"),
            py::arg("lean") = std::pair<double, double>(0.0, 0.0), py::arg("tile_px") = 320,
            py::arg("nadir_gsd_m") = 0.4, py::arg("scales") = std::vector<double>{1.0, 0.5, 0.3},
-           py::arg("min_inliers") = 15,
+           py::arg("min_inliers") = 15, py::arg("max_height_step_m") = 2.0,
            "depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); "
            "nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; "
-           "lean: stage 1's lean_depth_px_per_m.")
+           "lean: stage 1's lean_depth_px_per_m; max_height_step_m: pairs within a tile pixel of a larger height "
+           "step of the DSM are not lifted (0: keep all).")
       .def(
           "register",
           [](const ViewRegistrar& reg, py::handle view, double hfov, double focal) {

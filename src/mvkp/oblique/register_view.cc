@@ -16,6 +16,9 @@ void ViewRegistrarOptions::Check() const {
     Require(s >= 0.05 && s <= 4, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: scales must be in [0.05, 4]");
   Require(nadir_gsd_m >= 0 && nadir_gsd_m <= 100, ErrorCode::kInvalidArgument,
           "ViewRegistrarOptions: nadir_gsd_m must be in [0, 100]");
+  Require(max_height_step_m >= 0 && max_height_step_m <= 1000 && step_radius_px >= 0 && step_radius_px <= 20,
+          ErrorCode::kInvalidArgument,
+          "ViewRegistrarOptions: max_height_step_m must be in [0, 1000], step_radius_px in [0, 20]");
 }
 
 double NadirGsd(cv::Size size, const cv::Matx33d& H, double res_m) {
@@ -68,8 +71,14 @@ ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d&
     std::vector<NadirMatch> kept;
     std::vector<cv::Point3d> X;
     std::vector<cv::Point2d> x;
+    // in the tiles' pixels (the photo resized to nadir_gsd_m when finer)
+    const double step_cells =
+        options_.step_radius_px * std::max(nadir_gsd_m_, options_.nadir_gsd_m) / lifter_.res_m();
     for (const auto& c : found) {
       cv::Point3d w;
+      if (options_.max_height_step_m > 0 &&
+          !(lifter_.HeightStep(cv::Point2d(c.nadir), step_cells) <= options_.max_height_step_m))
+        continue;
       if (lifter_.Lift(cv::Point2d(c.nadir), &w)) X.push_back(w), x.emplace_back(c.view), kept.push_back(c);
     }
     ViewPose p = EstimateViewPose(X, x, K, options_.pose, view.size());

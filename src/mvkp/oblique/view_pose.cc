@@ -56,11 +56,12 @@ NadirLifter::NadirLifter(const cv::Mat1f& depth, double res_m, const cv::Matx33d
   ground_z_ = g[g.size() / 2];
 }
 
-bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const {
+bool NadirLifter::Locate(cv::Point2d p, cv::Point2d* out) const {
   const cv::Vec3d h = H_ * cv::Vec3d(p.x, p.y, 1);
   if (!(std::abs(h[2]) > 1e-12)) return false;
   const cv::Point2d q0(h[0] / h[2], h[1] / h[2]);
   const int w = dsm_.cols, hh = dsm_.rows;
+  if (!std::isfinite(q0.x) || !std::isfinite(q0.y) || std::abs(q0.x) > 1e7 || std::abs(q0.y) > 1e7) return false;
   auto cell = [&](cv::Point2d q) {
     return cv::Point(std::clamp(int(std::lround(q.x)), 0, w - 1), std::clamp(int(std::lround(q.y)), 0, hh - 1));
   };
@@ -77,8 +78,34 @@ bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const {
   }
   const cv::Point2d q = q0 - lean_ * t;
   if (q.x < 0 || q.y < 0 || q.x > w - 1 || q.y > hh - 1) return false;
-  *world = cv::Point3d(q.x * res_, -q.y * res_, dsm_(cell(q)));
+  *out = q;
   return true;
+}
+
+bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const {
+  cv::Point2d q;
+  if (!Locate(p, &q)) return false;
+  const cv::Point c(std::clamp(int(std::lround(q.x)), 0, dsm_.cols - 1),
+                    std::clamp(int(std::lround(q.y)), 0, dsm_.rows - 1));
+  *world = cv::Point3d(q.x * res_, -q.y * res_, dsm_(c));
+  return true;
+}
+
+double NadirLifter::HeightStep(cv::Point2d p, double radius_cells) const {
+  cv::Point2d q;
+  if (!Locate(p, &q)) return -1;
+  const int r = std::clamp(int(std::ceil(radius_cells)), 0, 64);
+  const int cx = std::clamp(int(std::lround(q.x)), 0, dsm_.cols - 1);
+  const int cy = std::clamp(int(std::lround(q.y)), 0, dsm_.rows - 1);
+  const double r2 = std::max(radius_cells, 0.0) * std::max(radius_cells, 0.0) + 1e-9;
+  float lo = dsm_(cy, cx), hi = lo;
+  for (int y = std::max(0, cy - r); y <= std::min(dsm_.rows - 1, cy + r); ++y)
+    for (int x = std::max(0, cx - r); x <= std::min(dsm_.cols - 1, cx + r); ++x) {
+      if (double(x - cx) * (x - cx) + double(y - cy) * (y - cy) > r2) continue;
+      lo = std::min(lo, dsm_(y, x));
+      hi = std::max(hi, dsm_(y, x));
+    }
+  return double(hi - lo);
 }
 
 ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vector<cv::Point2d>& pixels,

@@ -35,10 +35,19 @@ class NadirLifter {
   // surface met going down the lean from above. False outside the raster.
   bool Lift(cv::Point2d p, cv::Point3d* world) const;
 
+  // The height range (max - min of the DSM, metres) within `radius_cells`
+  // depth cells of where nadir pixel `p` lifts to: large at roof edges, where
+  // a point localised a pixel off in a coarse photo takes the ground's height
+  // or the roof's. -1 outside the raster.
+  double HeightStep(cv::Point2d p, double radius_cells) const;
+
   double res_m() const { return res_; }
   double ground_height() const { return ground_z_; }  // median terrain height, metres
 
  private:
+  // Where nadir pixel p lifts to, depth px (false outside the raster).
+  bool Locate(cv::Point2d p, cv::Point2d* q) const;
+
   cv::Mat1f dsm_, above_;  // gaps filled; height above the terrain
   double res_;
   cv::Matx33d H_;

@@ -123,6 +123,22 @@ TEST(ViewPose, GroundHomographyMapsGroundPoints) {
   }
 }
 
+// The height step around a lifted point: none inside a roof or on open
+// ground, the wall's height within the radius of a roof edge, -1 off the
+// raster.
+TEST(ViewPose, HeightStepMarksRoofEdges) {
+  cv::Mat1f d(60, 60, 10.f);
+  d(cv::Rect(20, 20, 20, 20)).setTo(22.f);  // a 12 m block, columns and rows 20..39
+  const NadirLifter lift(d, 0.5, cv::Matx33d::eye(), {0, 0});
+  EXPECT_FLOAT_EQ(lift.HeightStep({30, 30}, 2), 0.f);    // roof middle
+  EXPECT_FLOAT_EQ(lift.HeightStep({8, 8}, 2), 0.f);      // ground
+  EXPECT_FLOAT_EQ(lift.HeightStep({21, 30}, 2), 12.f);   // just inside the edge
+  EXPECT_FLOAT_EQ(lift.HeightStep({18, 30}, 2), 12.f);   // just outside
+  EXPECT_FLOAT_EQ(lift.HeightStep({17, 30}, 2), 0.f);    // three cells out
+  EXPECT_FLOAT_EQ(lift.HeightStep({17, 30}, 3), 12.f);   // within a larger radius
+  EXPECT_FLOAT_EQ(lift.HeightStep({-5, 30}, 2), -1.f);   // off the raster
+}
+
 TEST(ViewPose, BadInputIsRefused) {
   cv::Mat1f d(10, 10, std::numeric_limits<float>::quiet_NaN());
   EXPECT_THROW(NadirLifter(d, 0.5, cv::Matx33d::eye(), {0, 0}), Error);  // no data
