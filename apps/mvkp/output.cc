@@ -118,6 +118,9 @@ void AddMatchOptions(CLI::App* cmd, MatchOptions* o, bool* affine) {
   cmd->add_option("--tilt-factors", o->tilt_factors, "steep views: tilt factors simulated when nothing is found (ASIFT-style)")
       ->delimiter(',');
   cmd->add_option("--tilt-directions", o->tilt_directions, "steep views: directions per tilt factor (0: off)")->capture_default_str();
+  cmd->add_option("--tilt-directions-grow", o->tilt_directions_grow,
+                  "steep views: larger tilt factors get proportionally more directions (ASIFT's spacing)")
+      ->capture_default_str();
   cmd->add_option("--tilt-points", o->tilt_points, "steep views: query points per simulated view")->capture_default_str();
   cmd->add_flag("!--no-refine", o->refine, "skip the guided refinement after the robust fit");
   cmd->add_option("--refine-radius", o->refine_radius, "guided refinement: search radius (px)")->capture_default_str();

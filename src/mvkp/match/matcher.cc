@@ -710,9 +710,13 @@ MatchResult Matcher::MatchAt(const cv::Mat& gray, bool tilt, bool upsample) cons
   FeatureOptions ft = fo;
   ft.detector.max_points = options_.tilt_points;
   for (float t : options_.tilt_factors) {
-    for (int k = 0; k < options_.tilt_directions; ++k) {
+    const int dirs = options_.tilt_directions_grow
+                         ? std::clamp(int(std::lround(options_.tilt_directions * double(t) / options_.tilt_factors[0])),
+                                      options_.tilt_directions, 64)
+                         : options_.tilt_directions;
+    for (int k = 0; k < dirs; ++k) {
       Timer tw;
-      const double phi = CV_PI * k / options_.tilt_directions;
+      const double phi = CV_PI * k / dirs;
       const double c = std::cos(phi), sn = std::sin(phi);
       // Rotation by -phi into a canvas holding the whole frame.
       double rx0 = 1e300, ry0 = 1e300, rx1 = -1e300, ry1 = -1e300;
