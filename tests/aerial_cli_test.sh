@@ -287,6 +287,13 @@ expect_fail "register-all: a missing view" "nope.png" "$MVKP" register-all \
   "$RV/depth.tif" "$RV/photo.png" "$RV/oblique_00.png" "$RV/nope.png" --stage1 "$RV/stage1.json"
 expect_fail "register-all: stage 1 of another depth raster" "does not match" "$MVKP" register-all \
   "$RV/depth.tif" "$RV/photo.png" "$RV/oblique_00.png" --stage1 "$RV/stage1_other.json"
+run "$MVKP" register-all "$RV/depth.tif" "$RV/photo.png" "$RV/oblique_00.png" --stage1 "$RV/stage1.json" \
+  --max-height-step -1
+if ((RC == 2)) && grep -qF -- "--max-height-step" "$T/err"; then
+  ok "register-all: a negative height step is a usage error"
+else
+  fail "register-all: a negative height step: exit $RC: $(first_err)"
+fi
 expect_ok "register-all: stage 1 without a registration answers no camera" "$MVKP" register-all \
   "$RV/depth.tif" "$RV/photo.png" "$RV/oblique_00.png" --stage1 "$RV/stage1_none.json" --json
 check "register-all: no stage 1, no camera" "$PY" -c \
