@@ -186,7 +186,14 @@ class Stage2 {
     out["inliers"] = p.inliers;
     out["rms_px"] = p.rms_px;
     out["scale"] = r.scale;
-    out["time_ms"] = {{"read", read_ms}, {"match", r.match_ms}, {"pose", r.pose_ms}, {"total", total.ElapsedMs()}};
+    const GuidedRefinement& g = r.refinement;
+    out["refinement"] = {{"refined", g.refined}, {"tried", g.tried},   {"found", g.found},
+                         {"inliers", g.inliers}, {"rms_px", g.rms_px}, {"shift_px", g.shift_px}};
+    out["time_ms"] = {{"read", read_ms},
+                      {"match", r.match_ms},
+                      {"pose", r.pose_ms},
+                      {"refine", r.refine_ms},
+                      {"total", total.ElapsedMs()}};
     if (!draw.empty()) SaveImage(draw, Draw(view_path, p));
     return out;
   }
@@ -344,6 +351,15 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
       ->capture_default_str();
   c->add_option("--scales", a->reg.scales, "scales the view is searched at, in turn, until a camera is found")
       ->check(CLI::Range(0.05, 4.0))
+      ->capture_default_str();
+  c->add_flag("!--no-refine", a->reg.refine,
+              "keep the camera from the tiles' matches (default: refine it against the whole nadir photo by "
+              "correlation at the corners it predicts)");
+  c->add_option("--refine-ncc", a->reg.guided.min_ncc, "correlation a refinement match needs")
+      ->check(CLI::Range(0.05, 0.99))
+      ->capture_default_str();
+  c->add_option("--refine-search", a->reg.guided.search_px, "refinement search radius around the prediction, view px")
+      ->check(CLI::Range(1, 64))
       ->capture_default_str();
   c->add_flag("--json", a->json, "print the camera(s) and the correspondences as JSON");
 }

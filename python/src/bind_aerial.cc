@@ -361,8 +361,9 @@ void BindAerial(py::module_& m) {
       "nadir photo (trains MVKP on its tiles), then register() per view.")
       .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
                        std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
-                       int min_inliers, double max_height_step_m) {
+                       int min_inliers, double max_height_step_m, bool refine) {
              ViewRegistrarOptions o;
+             o.refine = refine;
              o.tiles.tile_px = tile_px;
              o.nadir_gsd_m = nadir_gsd_m;
              o.max_height_step_m = max_height_step_m;
@@ -380,11 +381,12 @@ void BindAerial(py::module_& m) {
            py::arg("depth"), py::arg("nadir"), py::arg("nadir_to_depth"), py::kw_only(), py::arg("res_m"),
            py::arg("lean") = std::pair<double, double>(0.0, 0.0), py::arg("tile_px") = 320,
            py::arg("nadir_gsd_m") = 0.4, py::arg("scales") = std::vector<double>{1.0, 0.5, 0.3},
-           py::arg("min_inliers") = 15, py::arg("max_height_step_m") = 2.0,
+           py::arg("min_inliers") = 15, py::arg("max_height_step_m") = 2.0, py::arg("refine") = true,
            "depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); "
            "nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; "
            "lean: stage 1's lean_depth_px_per_m; max_height_step_m: pairs within a tile pixel of a larger height "
-           "step of the DSM are not lifted (0: keep all).")
+           "step of the DSM are not lifted (0: keep all); refine: refine the camera against the whole nadir photo "
+           "(correlation at the corners it predicts).")
       .def(
           "register",
           [](const ViewRegistrar& reg, py::handle view, double hfov, double focal) {
@@ -427,9 +429,18 @@ void BindAerial(py::module_& m) {
             out["inliers"] = p.inliers;
             out["rms_px"] = p.rms_px;
             out["scale"] = r.scale;
+            py::dict gr;
+            gr["refined"] = r.refinement.refined;
+            gr["tried"] = r.refinement.tried;
+            gr["found"] = r.refinement.found;
+            gr["inliers"] = r.refinement.inliers;
+            gr["rms_px"] = r.refinement.rms_px;
+            gr["shift_px"] = r.refinement.shift_px;
+            out["refinement"] = gr;
             py::dict t;
             t["match"] = r.match_ms;
             t["pose"] = r.pose_ms;
+            t["refine"] = r.refine_ms;
             out["time_ms"] = t;
             return out;
           },
@@ -437,7 +448,8 @@ void BindAerial(py::module_& m) {
           "The camera of an oblique view (gray or BGR) with a pinhole of horizontal field of view hfov degrees "
           "(or focal length focal px), principal point at the centre. A dict: ok, reason, camera ((3, 4): world "
           "metres east-north-up -> view px, or None), K, R, centre_m, matches ((n, 4) nadir x, y, view x, y), "
-          "inlier ((n,) bool), inliers, rms_px, scale, time_ms. 'No registration' is ok False, not an error.")
+          "inlier ((n,) bool), inliers, rms_px, scale, refinement (refined, tried, found, inliers, rms_px, "
+          "shift_px), time_ms. 'No registration' is ok False, not an error.")
       .def_property_readonly("tiles", &ViewRegistrar::tiles, "MVKP tiles trained")
       .def_property_readonly("train_ms", &ViewRegistrar::train_ms, "training time, ms")
       .def_property_readonly("nadir_gsd_m", &ViewRegistrar::nadir_gsd_m, "metres per nadir pixel (from stage 1)")

@@ -126,6 +126,10 @@ def test_view_registrar_equals_cli(tmp_path):
         X = np.array([c["world_m"] + [1] for c in v["check_points"]]) @ r["camera"].T
         err = np.linalg.norm(X[:, :2] / X[:, 2:] - np.array([c["oblique_px"] for c in v["check_points"]]), axis=1)
         assert err.mean() <= 5, err.mean()
+        g = r["refinement"]
+        assert g["refined"] == cli_views[k]["refinement"]["refined"]
+        if g["refined"]:  # refitted on correlation matches all over the view: sub-pixel
+            assert g["inliers"] >= 30 and err.mean() <= 1.0, (g, err.mean())
     assert answered >= 1
     with pytest.raises(ValueError):
         mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0)

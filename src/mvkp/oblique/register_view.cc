@@ -11,6 +11,7 @@ namespace mvkp {
 void ViewRegistrarOptions::Check() const {
   tiles.Check();
   pose.Check();
+  guided.Check();
   Require(!scales.empty(), ErrorCode::kInvalidArgument, "ViewRegistrarOptions: at least one scale");
   for (double s : scales)
     Require(s >= 0.05 && s <= 4, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: scales must be in [0.05, 4]");
@@ -56,7 +57,8 @@ ViewRegistrar::ViewRegistrar(const cv::Mat1f& depth, double res_m, const cv::Mat
     : options_(options),
       nadir_gsd_m_(NadirGsd(nadir.size(), nadir_to_depth, res_m)),
       tiles_(nadir, TileOptions(options, nadir_gsd_m_)),
-      lifter_(depth, res_m, nadir_to_depth, lean) {}
+      lifter_(depth, res_m, nadir_to_depth, lean),
+      refiner_(nadir, lifter_, options.guided) {}
 
 ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d& K) const {
   Require(!view.empty() && view.type() == CV_8UC1, ErrorCode::kInvalidArgument,
@@ -86,6 +88,13 @@ ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d&
     if (r.scale == 0 || p.ok || (!r.pose.ok && p.inliers > r.pose.inliers))
       r.matches = std::move(kept), r.world = std::move(X), r.pose = std::move(p), r.scale = sc;
     if (r.pose.ok) break;
+  }
+  if (r.pose.ok && options_.refine) {
+    tm.Restart();
+    std::vector<cv::Point2d> px;
+    for (const auto& m : r.matches) px.emplace_back(m.view);
+    r.refinement = refiner_.Refine(view, K, lifter_, r.world, px, &r.pose);
+    r.refine_ms = tm.ElapsedMs();
   }
   if (r.pose.ok) {
     std::vector<int> tiles, cells;

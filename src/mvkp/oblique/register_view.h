@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "mvkp/oblique/guided_refine.h"
 #include "mvkp/oblique/nadir_tiles.h"
 #include "mvkp/oblique/view_pose.h"
 
@@ -33,6 +34,10 @@ struct ViewRegistrarOptions {
   // a 2 px radius: 92 right, 1 wrong). 0: keep all.
   double max_height_step_m = 2.0;
   double step_radius_px = 1.0;
+  // The camera found is refined against the whole nadir photo
+  // (guided_refine.h) when `refine`.
+  bool refine = true;
+  GuidedRefineOptions guided;
   void Check() const;  // throws Error(kInvalidArgument)
 };
 
@@ -44,6 +49,8 @@ struct ViewRegistration {
   double match_ms = 0, pose_ms = 0;
   int inlier_tiles = 0, inlier_cells = 0;  // where the agreeing pairs come from
   double inlier_height_span_m = 0;
+  GuidedRefinement refinement;       // what the guided refinement did
+  double refine_ms = 0;
 };
 
 class ViewRegistrar {
@@ -67,6 +74,7 @@ class ViewRegistrar {
   double nadir_gsd_m_;
   NadirTiles tiles_;
   NadirLifter lifter_;
+  GuidedRefiner refiner_;
 };
 
 // Ground metres per nadir pixel at the centre of a photo of `size`, from

@@ -51,12 +51,15 @@ NadirLifter::NadirLifter(const cv::Mat1f& depth, double res_m, const cv::Matx33d
   double mx = 0;
   cv::minMaxLoc(above_, nullptr, &mx);
   max_above_ = float(std::min(mx, 300.0));
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(dsm_, &lo, &hi);
+  dsm_max_ = float(hi);
   std::vector<float> g(terrain.begin(), terrain.end());
   std::nth_element(g.begin(), g.begin() + g.size() / 2, g.end());
   ground_z_ = g[g.size() / 2];
 }
 
-bool NadirLifter::Locate(cv::Point2d p, cv::Point2d* out) const {
+bool NadirLifter::Locate(cv::Point2d p, cv::Point2d* out, double* above_m) const {
   const cv::Vec3d h = H_ * cv::Vec3d(p.x, p.y, 1);
   if (!(std::abs(h[2]) > 1e-12)) return false;
   const cv::Point2d q0(h[0] / h[2], h[1] / h[2]);
@@ -79,12 +82,38 @@ bool NadirLifter::Locate(cv::Point2d p, cv::Point2d* out) const {
   const cv::Point2d q = q0 - lean_ * t;
   if (q.x < 0 || q.y < 0 || q.x > w - 1 || q.y > hh - 1) return false;
   *out = q;
+  if (above_m) *above_m = t;
   return true;
 }
 
-bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const {
+bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world) const { return Lift(p, world, nullptr); }
+
+cv::Matx33d NadirLifter::PlaneToDepth(double above_m) const {
+  const cv::Matx33d T(1, 0, -lean_.x * above_m, 0, 1, -lean_.y * above_m, 0, 0, 1);
+  return T * H_;
+}
+
+bool NadirLifter::Visible(const cv::Point3d& X, const cv::Vec3d& c, double clearance_m) const {
+  const cv::Vec3d d(c[0] - X.x, c[1] - X.y, c[2] - X.z);
+  const double horiz = std::hypot(d[0], d[1]);
+  if (!(d[2] > 0) || !std::isfinite(horiz)) return false;
+  if (horiz < 1e-9) return true;
+  const double step = 0.5 * res_;
+  // from just off the point (its own surface) until the ray is above every roof
+  for (double s = 2 * res_; s < horiz; s += step) {
+    const double z = X.z + d[2] * (s / horiz);
+    if (z > dsm_max_) break;
+    const double cx = (X.x + d[0] * (s / horiz)) / res_, cy = -(X.y + d[1] * (s / horiz)) / res_;
+    const int ix = int(std::lround(cx)), iy = int(std::lround(cy));
+    if (ix < 0 || iy < 0 || ix >= dsm_.cols || iy >= dsm_.rows) break;
+    if (dsm_(iy, ix) > z + clearance_m) return false;
+  }
+  return true;
+}
+
+bool NadirLifter::Lift(cv::Point2d p, cv::Point3d* world, double* above_m) const {
   cv::Point2d q;
-  if (!Locate(p, &q)) return false;
+  if (!Locate(p, &q, above_m)) return false;
   const cv::Point c(std::clamp(int(std::lround(q.x)), 0, dsm_.cols - 1),
                     std::clamp(int(std::lround(q.y)), 0, dsm_.rows - 1));
   *world = cv::Point3d(q.x * res_, -q.y * res_, dsm_(c));
@@ -144,12 +173,7 @@ ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vect
   const cv::Vec3d tc(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
   // back to the world frame: x_cam = R (X - c0) + tc = R X + (tc - R c0)
   const cv::Vec3d t = tc - R * cv::Vec3d(c0.x, c0.y, c0.z);
-  cv::Matx34d Rt;
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) Rt(i, j) = R(i, j);
-    Rt(i, 3) = t[i];
-  }
-  r.camera = K * Rt;
+  r.camera = CameraMatrix(K, R, t);
   r.R = R, r.t = t;
   r.centre_m = -(R.t() * t);
   double ss = 0;
@@ -189,6 +213,15 @@ ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vect
   r.ok = true;
   r.reason = what;
   return r;
+}
+
+cv::Matx34d CameraMatrix(const cv::Matx33d& K, const cv::Matx33d& R, const cv::Vec3d& t) {
+  cv::Matx34d Rt;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) Rt(i, j) = R(i, j);
+    Rt(i, 3) = t[i];
+  }
+  return K * Rt;
 }
 
 cv::Matx33d GroundHomography(const cv::Matx34d& P, double res_m, double z) {

@@ -35,6 +35,17 @@ class NadirLifter {
   // surface met going down the lean from above. False outside the raster.
   bool Lift(cv::Point2d p, cv::Point3d* world) const;
 
+  // The same, and the surface's height above the terrain (metres; the lean
+  // shifts it by that much): `PlaneToDepth(*above_m)` then maps the nadir
+  // pixels around `p` to depth pixels on its horizontal plane.
+  bool Lift(cv::Point2d p, cv::Point3d* world, double* above_m) const;
+  cv::Matx33d PlaneToDepth(double above_m) const;
+
+  // Whether the DSM leaves the straight line from `world` to the camera
+  // centre `centre_m` free (by `clearance_m`): a point behind a building,
+  // from that camera, is not seen.
+  bool Visible(const cv::Point3d& world, const cv::Vec3d& centre_m, double clearance_m = 0.5) const;
+
   // The height range (max - min of the DSM, metres) within `radius_cells`
   // depth cells of where nadir pixel `p` lifts to: large at roof edges, where
   // a point localised a pixel off in a coarse photo takes the ground's height
@@ -46,13 +57,13 @@ class NadirLifter {
 
  private:
   // Where nadir pixel p lifts to, depth px (false outside the raster).
-  bool Locate(cv::Point2d p, cv::Point2d* q) const;
+  bool Locate(cv::Point2d p, cv::Point2d* q, double* above_m = nullptr) const;
 
   cv::Mat1f dsm_, above_;  // gaps filled; height above the terrain
   double res_;
   cv::Matx33d H_;
   cv::Point2d lean_;
-  float max_above_ = 0;
+  float max_above_ = 0, dsm_max_ = 0;
   double ground_z_ = 0;
 };
 
@@ -91,6 +102,9 @@ struct ViewPose {
 // scattered or too clustered consistent pairs.
 ViewPose EstimateViewPose(const std::vector<cv::Point3d>& world, const std::vector<cv::Point2d>& pixels,
                           const cv::Matx33d& K, const ViewPoseOptions& options = {}, cv::Size image = {});
+
+// K [R | t].
+cv::Matx34d CameraMatrix(const cv::Matx33d& K, const cv::Matx33d& R, const cv::Vec3d& t);
 
 // The homography from depth pixels at ground height z (metres) to oblique
 // pixels under `camera`.
