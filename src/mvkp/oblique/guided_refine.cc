@@ -57,7 +57,7 @@ GuidedRefiner::GuidedRefiner(const cv::Mat& nadir_gray, const NadirLifter& lifte
   o.Check();
   Require(!nadir_gray.empty() && nadir_gray.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "GuidedRefiner: an 8-bit grey nadir photo is required");
-  nadir_ = nadir_gray;
+  nadir_ = nadir_gray.clone();  // kept: the caller's buffer may not outlive us (numpy)
   cv::pyrDown(nadir_, half_);
   std::vector<cv::Point2f> pts;
   cv::goodFeaturesToTrack(nadir_, pts, o.max_corners, 0.01, o.corner_spacing_px, cv::noArray(), 5);
