@@ -164,6 +164,42 @@ TEST(BruteForce, KnnAndTwoDistinctMatchANaiveScan) {
   }
 }
 
+TEST(BruteForce, KnnOnIntegerDataBreaksTiesByRowLikeAStableSort) {
+  // Few distinct values: many exact ties, at the k-th place too. The k
+  // nearest must be those of a stable sort by distance (the first stored
+  // wins a tie), for k below, at and above the number of chunks the
+  // selection bounds with, and above n.
+  std::mt19937 rng(21);
+  for (int n : {1, 2, 9, 16, 17, 87, 88, 250})
+    for (int k : {1, 2, 3, 8, 16, 40, 300}) {
+      const int dim = 6;
+      std::vector<float> x(std::size_t(n) * dim), q(9 * dim);
+      for (auto& v : x) v = float(int(rng() % 3) - 1);
+      for (auto& v : q) v = float(int(rng() % 3) - 1);
+      auto index = MakeBruteForceIndex();
+      index->Build(x.data(), n, dim, nullptr);
+      std::vector<Neighbor> batch(std::size_t(9) * k);
+      index->SearchBatch(q.data(), 9, k, batch.data());
+      for (int i = 0; i < 9; ++i) {
+        std::vector<std::pair<float, int>> all;
+        for (int j = 0; j < n; ++j) all.push_back({D2(&q[i * dim], &x[j * dim], dim), j});
+        std::stable_sort(all.begin(), all.end(), [](auto& a, auto& b) { return a.first < b.first; });
+        std::vector<Neighbor> one(k);
+        index->Search(&q[i * dim], k, one.data());
+        for (int t = 0; t < k; ++t) {
+          const Neighbor& b = batch[std::size_t(i) * k + t];
+          EXPECT_EQ(b.id, one[t].id);
+          if (t < n) {
+            ASSERT_EQ(b.id, all[t].second) << "n " << n << " k " << k << " rank " << t;
+            EXPECT_EQ(b.distance, all[t].first);
+          } else {
+            EXPECT_EQ(b.id, -1);
+          }
+        }
+      }
+    }
+}
+
 TEST(BruteForce, RatioHintKeepsTheNearestAndTheTestOutcome) {
   const Data d = Random(500, 20, 40, 11), q = Random(200, 20, 1, 12);
   auto index = MakeBruteForceIndex();
@@ -178,7 +214,9 @@ TEST(BruteForce, RatioHintKeepsTheNearestAndTheTestOutcome) {
       const bool pass_hinted = std::sqrt(hinted[0].distance) < ratio * std::sqrt(hinted[1].distance);
       EXPECT_EQ(pass_exact, pass_hinted);
       EXPECT_GE(hinted[1].distance, exact[1].distance);
-      if (!pass_exact) EXPECT_EQ(exact[1].id, hinted[1].id);
+      if (!pass_exact) {
+        EXPECT_EQ(exact[1].id, hinted[1].id);
+      }
     }
 }
 

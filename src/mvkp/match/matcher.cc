@@ -137,6 +137,19 @@ Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_pt
   for (std::size_t i = 0; i < places_.size(); ++i) places_[i] = place[model_.labels[i]];
   location_rows_.assign(model_.locations.size(), {});
   for (std::size_t i = 0; i < model_.labels.size(); ++i) location_rows_[model_.labels[i]].push_back(int(i));
+  location_blocks_.assign(model_.locations.size(), {});
+  const int dims = model_.descriptors.cols;
+  for (std::size_t l = 0; l < location_rows_.size(); ++l) {
+    const std::vector<int>& rows = location_rows_[l];
+    if (rows.empty()) continue;
+    const std::size_t nb = (rows.size() + 7) / 8;
+    std::vector<float>& blk = location_blocks_[l];
+    blk.resize(nb * std::size_t(dims) * 8);
+    for (std::size_t j = 0; j < nb * 8; ++j) {
+      const float* c = model_.descriptors.ptr<float>(rows[j < rows.size() ? j : 0]);
+      for (int k = 0; k < dims; ++k) blk[((j / 8) * std::size_t(dims) + std::size_t(k)) * 8 + j % 8] = c[k];
+    }
+  }
   index_->Build(model_.descriptors.ptr<float>(), std::size_t(model_.descriptors.rows), model_.params.dims,
                 places_.data());
 }
@@ -353,9 +366,15 @@ void Matcher::Refine(MatchResult& r, QueryPoints& q) const {
     ymax = std::max(ymax, p.y);
   }
   const int gw = int(xmax / R) + 2, gh = int(ymax / R) + 2;
-  std::vector<std::vector<int>> grid(std::size_t(gw) * gh);
+  // As linked lists (head per cell, next per point): a vector per cell cost
+  // thousands of allocations a frame. The order within a cell is immaterial.
+  std::vector<int> head(std::size_t(gw) * gh, -1), next_in_cell(std::size_t(nq), -1);
   for (int i = 0; i < nq; ++i)
-    if (q.pts[i].x >= 0 && q.pts[i].y >= 0) grid[std::size_t(int(q.pts[i].y / R)) * gw + int(q.pts[i].x / R)].push_back(i);
+    if (q.pts[i].x >= 0 && q.pts[i].y >= 0) {
+      int& h = head[std::size_t(int(q.pts[i].y / R)) * gw + int(q.pts[i].x / R)];
+      next_in_cell[std::size_t(i)] = h;
+      h = i;
+    }
   // Where the homography puts each location (those it can pair).
   const cv::Matx33d& H = r.homography;
   const int nloc = int(model_.locations.size());
@@ -395,37 +414,24 @@ void Matcher::Refine(MatchResult& r, QueryPoints& q) const {
     const int cx = int(std::floor(px / R)), cy = int(std::floor(py / R));
     for (int yy = std::max(0, cy - 1); yy <= std::min(gh - 1, cy + 1); ++yy)
       for (int xx = std::max(0, cx - 1); xx <= std::min(gw - 1, cx + 1); ++xx)
-        for (int i : grid[std::size_t(yy) * gw + xx]) {
+        for (int i = head[std::size_t(yy) * gw + xx]; i >= 0; i = next_in_cell[std::size_t(i)]) {
           const float dx = q.pts[i].x - px, dy = q.pts[i].y - py;
           if (dx * dx + dy * dy > R * R || !q.ready[std::size_t(i)]) continue;
           const float* qd = &q.desc[std::size_t(i) * dims];
           float dmin = std::numeric_limits<float>::infinity();
-          // Four centres at a time: four independent sums, each in the same
-          // order as one at a time (the same values), without one long chain.
-          const std::vector<int>& rows = location_rows_[l];
-          std::size_t j = 0;
-          for (; j + 4 <= rows.size(); j += 4) {
-            const float* c0 = model_.descriptors.ptr<float>(rows[j]);
-            const float* c1 = model_.descriptors.ptr<float>(rows[j + 1]);
-            const float* c2 = model_.descriptors.ptr<float>(rows[j + 2]);
-            const float* c3 = model_.descriptors.ptr<float>(rows[j + 3]);
-            float s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-            for (int k = 0; k < dims; ++k) {
-              s0 += (qd[k] - c0[k]) * (qd[k] - c0[k]);
-              s1 += (qd[k] - c1[k]) * (qd[k] - c1[k]);
-              s2 += (qd[k] - c2[k]) * (qd[k] - c2[k]);
-              s3 += (qd[k] - c3[k]) * (qd[k] - c3[k]);
-            }
-            dmin = std::min(dmin, s0);
-            dmin = std::min(dmin, s1);
-            dmin = std::min(dmin, s2);
-            dmin = std::min(dmin, s3);
-          }
-          for (; j < rows.size(); ++j) {
-            const float* c = model_.descriptors.ptr<float>(rows[j]);
-            float s2 = 0;
-            for (int k = 0; k < dims; ++k) s2 += (qd[k] - c[k]) * (qd[k] - c[k]);
-            dmin = std::min(dmin, s2);
+          // Eight centres at a time, one per lane: each lane sums its
+          // dimensions in order, as a plain loop over one centre would, so
+          // the distances are the same values (and the loop vectorises).
+          const std::vector<float>& blk = location_blocks_[l];
+          for (std::size_t o = 0; o < blk.size(); o += std::size_t(dims) * 8) {
+            float s8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+            const float* c = blk.data() + o;
+            for (int k = 0; k < dims; ++k)
+              for (int j = 0; j < 8; ++j) {
+                const float e = qd[k] - c[k * 8 + j];
+                s8[j] += e * e;
+              }
+            for (int j = 0; j < 8; ++j) dmin = std::min(dmin, s8[j]);
           }
           const float d = std::sqrt(dmin);
           if (d <= tau && d < best_d[i]) {
