@@ -73,6 +73,32 @@ TEST(L2Kernels, TwoDistinctNormSimdEqualsScalarOnIntegerData) {
         }
 }
 
+TEST(L2Kernels, NearestRowsSimdEqualsScalarAndTheBruteForceIndex) {
+  // Integer data with few values: ties everywhere, at the k-th place too.
+  // Real-valued data: the distances must agree bit for bit to agree on rows.
+  if (!internal::CpuHasAvx2()) GTEST_SKIP() << "no AVX2";
+  std::mt19937 rng(5);
+  for (int integer : {1, 0})
+    for (int n : {1, 3, 4, 7, 87, 130})
+      for (int dim : {1, 6, 20})
+        for (int k : {1, 2, 5, 8}) {
+          const std::size_t nq = 1 + rng() % 21;
+          std::vector<float> x(std::size_t(n) * dim), q(nq * dim);
+          std::normal_distribution<float> g;
+          for (auto& v : x) v = integer ? float(int(rng() % 3) - 1) : g(rng);
+          for (auto& v : q) v = integer ? float(int(rng() % 3) - 1) : g(rng);
+          std::vector<std::int32_t> a(nq * k), b(nq * k);
+          internal::NearestRowsScalar(x.data(), n, dim, q.data(), nq, k, a.data());
+          internal::NearestRowsAvx2(x.data(), n, dim, q.data(), nq, k, b.data());
+          ASSERT_EQ(a, b) << "n " << n << " dim " << dim << " k " << k;
+          auto index = MakeBruteForceIndex();
+          index->Build(x.data(), n, dim, nullptr);
+          std::vector<Neighbor> c(nq * k);
+          index->SearchBatch(q.data(), nq, k, c.data());
+          for (std::size_t i = 0; i < c.size(); ++i) ASSERT_EQ(c[i].id, a[i]) << i;
+        }
+}
+
 TEST(BruteForce, TwoDistinctEqualsANaiveScanOnIntegerData) {
   // Integer data: the norm expansion is exact, so ids must match a plain scan.
   std::mt19937 rng(9);

@@ -28,10 +28,20 @@ struct IvfIndex::Impl {
   std::vector<std::int32_t> rows;        // per lane: row in Build's data, -1 for padding
   internal::TwoDistinctNormFn two = nullptr;
   internal::L2Blocks8Fn l2 = nullptr;
+  // A few hundred centroids: scanned directly (row-major copy), see Probe.
+  std::vector<float> centroids;
+  int dim = 0;
+  internal::NearestRowsFn nearest = nullptr;
   mutable std::atomic<std::uint64_t> computations{0};
 
   // The probed lists of nq queries: nq * nprobe list numbers.
   std::vector<std::int32_t> Probe(const float* queries, std::size_t nq, int nprobe) const {
+    if (nearest && nprobe <= internal::kMaxNearest) {
+      // The same lists as the brute-force scan below, without its branches.
+      std::vector<std::int32_t> cells(nq * std::size_t(nprobe));
+      if (nq) nearest(centroids.data(), ncentroids, dim, queries, nq, nprobe, cells.data());
+      return cells;
+    }
     std::vector<Neighbor> nn(nq * std::size_t(nprobe));
     if (nq) coarse->SearchBatch(queries, nq, nprobe, nn.data());
     std::vector<std::int32_t> cells(nn.size());
@@ -54,6 +64,11 @@ IvfIndex::IvfIndex(const float* centroids, std::size_t ncentroids, int dim, cons
   std::iota(ids.begin(), ids.end(), 0);
   // A few hundred centroids are scanned faster than FFVA's tree is walked.
   impl_->coarse = ncentroids <= 256 ? MakeBruteForceIndex() : MakeIndexByName("exact");
+  if (ncentroids <= 256) {
+    impl_->centroids.assign(centroids, centroids + ncentroids * std::size_t(dim));
+    impl_->dim = dim;
+    impl_->nearest = internal::BestNearestRows();
+  }
   impl_->coarse->Build(centroids, ncentroids, dim, ids.data());
   impl_->two = internal::BestTwoDistinctNorm();
   impl_->l2 = internal::BestL2Blocks8();

@@ -23,6 +23,41 @@ void L2Blocks8Scalar(const float* blocks, std::size_t nblocks, const float* q, i
   }
 }
 
+void NearestRowsScalar(const float* rows, std::size_t n, int dim, const float* queries, std::size_t nq, int k,
+                       std::int32_t* out) {
+  for (std::size_t i = 0; i < nq; ++i) {
+    const float* q = queries + i * std::size_t(dim);
+    float best[kMaxNearest];
+    std::int32_t* o = out + i * std::size_t(k);
+    for (int j = 0; j < k; ++j) {
+      best[j] = std::numeric_limits<float>::infinity();
+      o[j] = -1;
+    }
+    for (std::size_t r = 0; r < n; ++r) {
+      const float* x = rows + r * std::size_t(dim);
+      float acc = 0.f;
+      for (int d = 0; d < dim; ++d) {
+        const float diff = x[d] - q[d];
+        acc = std::fma(diff, diff, acc);
+      }
+      if (!(acc < best[k - 1])) continue;
+      int p = k - 1;
+      while (p > 0 && best[p - 1] > acc) {
+        best[p] = best[p - 1];
+        o[p] = o[p - 1];
+        --p;
+      }
+      best[p] = acc;
+      o[p] = std::int32_t(r);
+    }
+  }
+}
+
+NearestRowsFn BestNearestRows() {
+  static const NearestRowsFn fn = CpuHasAvx2() ? &NearestRowsAvx2 : &NearestRowsScalar;
+  return fn;
+}
+
 TopTwo EmptyTopTwo(float ratio) {
   const float inf = std::numeric_limits<float>::infinity();
   return {inf, inf, -1, -1, -1, -1, ratio * ratio};

@@ -2,6 +2,10 @@
 // BestL2Blocks8() after a run-time CPU check.
 #include <immintrin.h>
 
+#include <algorithm>
+#include <limits>
+#include <vector>
+
 #include "mvkp/index/internal/l2_kernels.h"
 
 namespace mvkp::internal {
@@ -133,6 +137,76 @@ void TwoDistinctNormQ(const float* blocks, const float* norms, const std::int32_
 }
 
 }  // namespace
+
+void NearestRowsAvx2(const float* rows, std::size_t n, int dim, const float* queries, std::size_t nq, int k,
+                     std::int32_t* out) {
+  constexpr int K = kMaxNearest;
+  std::vector<float> qt(std::size_t(dim) * kLanes);  // [d][lane]: eight queries, transposed
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  for (std::size_t first = 0; first < nq; first += kLanes) {
+    const std::size_t m = std::min<std::size_t>(kLanes, nq - first);
+    for (int d = 0; d < dim; ++d)
+      for (int l = 0; l < kLanes; ++l)  // spare lanes repeat the group's first query
+        qt[std::size_t(d) * kLanes + std::size_t(l)] = queries[(first + (std::size_t(l) < m ? l : 0)) * std::size_t(dim) + d];
+    __m256 bd[K];
+    __m256i bi[K];
+    for (int j = 0; j < K; ++j) {
+      bd[j] = inf;
+      bi[j] = _mm256_set1_epi32(-1);
+    }
+    // Sorted insertion of one row's distances into every lane's slots: the
+    // row goes before the first slot it is strictly below (ties stay after
+    // the earlier row), and every later slot shifts down by one.
+    auto insert = [&](__m256 x, std::int32_t row) {
+      __m256i xi = _mm256_set1_epi32(row);
+      __m256 moving = _mm256_setzero_ps();
+      for (int j = 0; j < K; ++j) {
+        const __m256 m = _mm256_or_ps(moving, _mm256_cmp_ps(x, bd[j], _CMP_LT_OQ));
+        const __m256 t = bd[j];
+        const __m256i ti = bi[j];
+        bd[j] = _mm256_blendv_ps(t, x, m);
+        bi[j] = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(ti), _mm256_castsi256_ps(xi), m));
+        x = _mm256_blendv_ps(x, t, m);
+        xi = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(xi), _mm256_castsi256_ps(ti), m));
+        moving = m;
+      }
+    };
+    std::size_t r = 0;
+    // Four rows at a time: four independent accumulator chains.
+    for (; r + 4 <= n; r += 4) {
+      const float* x0 = rows + r * std::size_t(dim);
+      __m256 a0 = _mm256_setzero_ps(), a1 = a0, a2 = a0, a3 = a0;
+      for (int d = 0; d < dim; ++d) {
+        const __m256 q = _mm256_loadu_ps(&qt[std::size_t(d) * kLanes]);
+        const __m256 e0 = _mm256_sub_ps(_mm256_set1_ps(x0[d]), q);
+        const __m256 e1 = _mm256_sub_ps(_mm256_set1_ps(x0[dim + d]), q);
+        const __m256 e2 = _mm256_sub_ps(_mm256_set1_ps(x0[2 * dim + d]), q);
+        const __m256 e3 = _mm256_sub_ps(_mm256_set1_ps(x0[3 * dim + d]), q);
+        a0 = _mm256_fmadd_ps(e0, e0, a0);
+        a1 = _mm256_fmadd_ps(e1, e1, a1);
+        a2 = _mm256_fmadd_ps(e2, e2, a2);
+        a3 = _mm256_fmadd_ps(e3, e3, a3);
+      }
+      insert(a0, std::int32_t(r));
+      insert(a1, std::int32_t(r + 1));
+      insert(a2, std::int32_t(r + 2));
+      insert(a3, std::int32_t(r + 3));
+    }
+    for (; r < n; ++r) {
+      const float* x = rows + r * std::size_t(dim);
+      __m256 a = _mm256_setzero_ps();
+      for (int d = 0; d < dim; ++d) {
+        const __m256 e = _mm256_sub_ps(_mm256_set1_ps(x[d]), _mm256_loadu_ps(&qt[std::size_t(d) * kLanes]));
+        a = _mm256_fmadd_ps(e, e, a);
+      }
+      insert(a, std::int32_t(r));
+    }
+    alignas(32) std::int32_t ids[K][kLanes];
+    for (int j = 0; j < K; ++j) _mm256_store_si256(reinterpret_cast<__m256i*>(ids[j]), bi[j]);
+    for (std::size_t l = 0; l < m; ++l)
+      for (int j = 0; j < k; ++j) out[(first + l) * std::size_t(k) + std::size_t(j)] = ids[j][l];
+  }
+}
 
 void TwoDistinctNormAvx2(const float* blocks, const float* norms, const std::int32_t* labels, std::size_t nblocks,
                          const float* queries, const float* qnorms, int nq, int dim, TopTwo* t) {

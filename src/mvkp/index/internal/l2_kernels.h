@@ -64,6 +64,22 @@ using TwoDistinctNormFn = void (*)(const float*, const float*, const std::int32_
                                    const float*, int, int, TopTwo*);
 TwoDistinctNormFn BestTwoDistinctNorm();
 
+// The k nearest (k in 1..kMaxNearest) of n row-major vectors (n x dim) to
+// each of nq queries: out[i * k + j] is the row of query i's j-th nearest,
+// nearest first, ties by row (the first stored wins), -1 past n. Distances
+// are L2Blocks8's (fused multiply-adds of (x - q)^2 in dimension order), so
+// the rows are those of a scan with L2Blocks8 and a stable insertion. The
+// AVX2 version puts eight queries in the lanes and inserts each row into
+// eight sorted slots per lane without a branch; the IVF's coarse probe
+// (87 lists, 8 probed) spent most of its time in the insertion's branches.
+constexpr int kMaxNearest = 8;
+void NearestRowsScalar(const float* rows, std::size_t n, int dim, const float* queries, std::size_t nq, int k,
+                       std::int32_t* out);
+void NearestRowsAvx2(const float* rows, std::size_t n, int dim, const float* queries, std::size_t nq, int k,
+                     std::int32_t* out);
+using NearestRowsFn = void (*)(const float*, std::size_t, int, const float*, std::size_t, int, std::int32_t*);
+NearestRowsFn BestNearestRows();
+
 // |x|^2 accumulated with fused multiply-adds in dimension order.
 float SquaredNorm(const float* x, int dim);
 
