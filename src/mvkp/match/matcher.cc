@@ -75,6 +75,95 @@ bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& q, double min_area) {
   return std::abs(cv::contourArea(poly)) >= min_area;
 }
 
+bool FitHomographyLeastSquares(const std::vector<cv::Point2f>& src, const std::vector<cv::Point2f>& dst,
+                               const cv::Matx33d& start, cv::Matx33d& H) {
+  const std::size_t n = std::min(src.size(), dst.size());
+  if (n < 4) return false;
+  // Similarity normalisation: centroid at 0, mean distance sqrt(2). A
+  // similarity of dst scales every residual alike, so the minimiser is the
+  // same as in pixels.
+  auto normaliser = [n](const std::vector<cv::Point2f>& p) {
+    double cx = 0, cy = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      cx += p[i].x;
+      cy += p[i].y;
+    }
+    cx /= double(n);
+    cy /= double(n);
+    double r = 0;
+    for (std::size_t i = 0; i < n; ++i) r += std::hypot(p[i].x - cx, p[i].y - cy);
+    r /= double(n);
+    const double s = r > 1e-12 ? std::sqrt(2.0) / r : 1.0;
+    return cv::Matx33d(s, 0, -s * cx, 0, s, -s * cy, 0, 0, 1);
+  };
+  const cv::Matx33d Ts = normaliser(src), Td = normaliser(dst);
+  std::vector<cv::Vec2d> a(n), b(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    a[i] = {Ts(0, 0) * src[i].x + Ts(0, 2), Ts(1, 1) * src[i].y + Ts(1, 2)};
+    b[i] = {Td(0, 0) * dst[i].x + Td(0, 2), Td(1, 1) * dst[i].y + Td(1, 2)};
+  }
+  cv::Matx33d G = Td * start * Ts.inv();
+  if (!(std::abs(G(2, 2)) > 1e-12)) return false;
+  G *= 1.0 / G(2, 2);
+  cv::Vec<double, 8> p(G(0, 0), G(0, 1), G(0, 2), G(1, 0), G(1, 1), G(1, 2), G(2, 0), G(2, 1));
+  auto cost = [&](const cv::Vec<double, 8>& h) {
+    double c = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double x = a[i][0], y = a[i][1], w = h[6] * x + h[7] * y + 1;
+      const double ex = (h[0] * x + h[1] * y + h[2]) / w - b[i][0], ey = (h[3] * x + h[4] * y + h[5]) / w - b[i][1];
+      c += ex * ex + ey * ey;
+    }
+    return c;
+  };
+  double c0 = cost(p);
+  if (!std::isfinite(c0)) return false;
+  double lambda = 1e-6;
+  for (int it = 0; it < 30; ++it) {
+    cv::Matx<double, 8, 8> A = cv::Matx<double, 8, 8>::zeros();
+    cv::Vec<double, 8> g = cv::Vec<double, 8>::all(0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double x = a[i][0], y = a[i][1], iw = 1.0 / (p[6] * x + p[7] * y + 1);
+      const double X = (p[0] * x + p[1] * y + p[2]) * iw, Y = (p[3] * x + p[4] * y + p[5]) * iw;
+      const double jx[8] = {x * iw, y * iw, iw, 0, 0, 0, -X * x * iw, -X * y * iw};
+      const double jy[8] = {0, 0, 0, x * iw, y * iw, iw, -Y * x * iw, -Y * y * iw};
+      const double rx = X - b[i][0], ry = Y - b[i][1];
+      for (int r = 0; r < 8; ++r) {
+        g[r] += jx[r] * rx + jy[r] * ry;
+        for (int c = r; c < 8; ++c) A(r, c) += jx[r] * jx[c] + jy[r] * jy[c];
+      }
+    }
+    for (int r = 0; r < 8; ++r)
+      for (int c = 0; c < r; ++c) A(r, c) = A(c, r);
+    bool improved = false;
+    while (lambda < 1e10) {
+      cv::Matx<double, 8, 8> D = A;
+      for (int r = 0; r < 8; ++r) D(r, r) += lambda * std::max(A(r, r), 1e-12);
+      // Zero when the factorisation fails (degenerate points): no change.
+      const cv::Vec<double, 8> step = D.solve(-g, cv::DECOMP_CHOLESKY);
+      const cv::Vec<double, 8> q = p + step;
+      const double c1 = cost(q);
+      if (std::isfinite(c1) && c1 <= c0) {
+        const bool done = c0 - c1 <= 1e-14 * c0 + 1e-30 || cv::norm(step) <= 1e-12 * (cv::norm(p) + 1e-12);
+        p = q;
+        c0 = c1;
+        lambda = std::max(lambda * 0.1, 1e-12);
+        improved = !done;
+        break;
+      }
+      lambda *= 10;
+    }
+    if (!improved) break;
+  }
+  const cv::Matx33d Gn(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], 1);
+  cv::Matx33d Hn = Td.inv() * Gn * Ts;
+  if (!(std::abs(Hn(2, 2)) > 1e-15)) return false;
+  Hn *= 1.0 / Hn(2, 2);
+  for (int i = 0; i < 9; ++i)
+    if (!std::isfinite(Hn.val[i])) return false;
+  H = Hn;
+  return true;
+}
+
 std::vector<std::int32_t> LocationPlaces(const Model& model) {
   const int n = int(model.locations.size());
   std::vector<std::int32_t> parent(n);
@@ -478,7 +567,8 @@ void Matcher::Refine(MatchResult& r, QueryPoints& q) const {
     kept_before = kept;
     cv::Mat Hn;
     if (options_.geometry == GeometryModel::kHomography) {
-      Hn = cv::findHomography(s2, d2, 0);
+      cv::Matx33d Hf;
+      if (FitHomographyLeastSquares(s2, d2, Hr, Hf)) Hn = cv::Mat(Hf, true);
     } else {
       cv::Mat A = cv::estimateAffine2D(s2, d2, cv::noArray(), cv::LMEDS);
       if (!A.empty()) {

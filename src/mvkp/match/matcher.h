@@ -215,4 +215,13 @@ double MeanCornerError(const cv::Matx33d& a, const cv::Matx33d& b, cv::Size size
 // True if the quadrilateral is convex, not self-intersecting, and of area >= min_area.
 bool IsPlausibleOutline(const std::array<cv::Point2f, 4>& quad, double min_area = 64.0);
 
+// The homography minimising sum_i |H(src_i) - dst_i|^2 (pixels in dst), by
+// Levenberg-Marquardt from `start` on similarity-normalised points: the
+// objective cv::findHomography(src, dst, 0) minimises from its DLT start, at
+// a fraction of its cost (no heap matrices; the matcher's refinement refits
+// a close homography up to three times a frame). H(2,2) = 1. False, and H
+// untouched, with fewer than 4 pairs or a degenerate fit.
+bool FitHomographyLeastSquares(const std::vector<cv::Point2f>& src, const std::vector<cv::Point2f>& dst,
+                               const cv::Matx33d& start, cv::Matx33d& H);
+
 }  // namespace mvkp
