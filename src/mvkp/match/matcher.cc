@@ -4,6 +4,10 @@
 #include <cmath>
 #include <numeric>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -512,6 +516,25 @@ void Matcher::Refine(MatchResult& r, QueryPoints& q) const {
           // dimensions in order, as a plain loop over one centre would, so
           // the distances are the same values (and the loop vectorises).
           const std::vector<float>& blk = location_blocks_[l];
+#if defined(__SSE2__)
+          // (SSE2, the x86-64 baseline: separate multiply and add, as the
+          // scalar code compiles without FMA.)
+          __m128 m4 = _mm_set1_ps(dmin);
+          for (std::size_t o = 0; o < blk.size(); o += std::size_t(dims) * 8) {
+            __m128 s0 = _mm_setzero_ps(), s1 = _mm_setzero_ps();
+            const float* c = blk.data() + o;
+            for (int k = 0; k < dims; ++k) {
+              const __m128 qk = _mm_set1_ps(qd[k]);
+              const __m128 e0 = _mm_sub_ps(qk, _mm_loadu_ps(c + k * 8)), e1 = _mm_sub_ps(qk, _mm_loadu_ps(c + k * 8 + 4));
+              s0 = _mm_add_ps(s0, _mm_mul_ps(e0, e0));
+              s1 = _mm_add_ps(s1, _mm_mul_ps(e1, e1));
+            }
+            m4 = _mm_min_ps(m4, _mm_min_ps(s0, s1));
+          }
+          alignas(16) float m[4];
+          _mm_store_ps(m, m4);
+          dmin = std::min(std::min(m[0], m[1]), std::min(m[2], m[3]));
+#else
           for (std::size_t o = 0; o < blk.size(); o += std::size_t(dims) * 8) {
             float s8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
             const float* c = blk.data() + o;
@@ -522,6 +545,7 @@ void Matcher::Refine(MatchResult& r, QueryPoints& q) const {
               }
             for (int j = 0; j < 8; ++j) dmin = std::min(dmin, s8[j]);
           }
+#endif
           const float d = std::sqrt(dmin);
           if (d <= tau && d < best_d[i]) {
             best_d[i] = d;
