@@ -242,6 +242,7 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
     }
     std::vector<std::size_t> next(bucket.size(), 0);
     std::vector<int> round;
+    std::vector<std::pair<float, int>> rel_round;
     while (int(chosen.size()) < quota_total) {
       round.clear();
       for (std::size_t b = 0; b < bucket.size(); ++b) {
@@ -250,11 +251,16 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
         if (next[b] < bucket[b].size()) round.push_back(bucket[b][next[b]++]);
       }
       if (round.empty()) break;
-      auto rel = [&](int i) {
+      // Each point's strength relative to its cell, computed once (not per
+      // comparison), then a stable sort by it: the same order as before.
+      rel_round.clear();
+      for (const int i : round) {
         const int cx = std::min(cw - 1, int(cand[i].x / side)), cy = std::min(ch - 1, int(cand[i].y / side));
-        return cand[i].strength / cell_max[std::size_t(cy) * cw + cx];
-      };
-      std::stable_sort(round.begin(), round.end(), [&](int a, int b) { return rel(a) > rel(b); });
+        rel_round.push_back({cand[i].strength / cell_max[std::size_t(cy) * cw + cx], i});
+      }
+      std::stable_sort(rel_round.begin(), rel_round.end(),
+                       [](const std::pair<float, int>& a, const std::pair<float, int>& b) { return a.first > b.first; });
+      for (std::size_t k = 0; k < rel_round.size(); ++k) round[k] = rel_round[k].second;
       for (int i : round) {
         if (int(chosen.size()) >= quota_total) break;
         if (spaced(cand[i])) take(i);
