@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -124,6 +125,30 @@ TEST(DiscMoments, SimdEqualsScalarReference) {
       ASSERT_EQ(a01, d01) << "r " << r;
       ASSERT_EQ(b10, a10) << "r " << r << " at " << px << "," << py;
       ASSERT_EQ(b01, a01) << "r " << r << " at " << px << "," << py;
+    }
+  }
+}
+
+// The AVX2 row of rotated bilinear samples equals the scalar reference bit
+// for bit (the describer's values must not depend on the CPU).
+TEST(BilinearRow8, SimdEqualsScalarReferenceBitForBit) {
+  if (internal::BestBilinearRow8() == &internal::BilinearRow8Scalar) GTEST_SKIP() << "no AVX2 on this CPU";
+  cv::Mat img(90, 110, CV_32F);
+  cv::RNG rng(12);
+  rng.fill(img, cv::RNG::UNIFORM, 0.0, 255.0);
+  const float offs[8] = {-14, -10, -6, -2, 2, 6, 10, 14};
+  for (int k = 0; k < 2000; ++k) {
+    const float a = float(rng.uniform(-CV_PI, CV_PI)), c = std::cos(a), s = std::sin(a);
+    const float cx = float(rng.uniform(25.0, 84.0)), cy = float(rng.uniform(25.0, 64.0));
+    const float oy = offs[k % 8];
+    float x[8], y[8];
+    internal::BilinearRow8Scalar(img.ptr<float>(), std::ptrdiff_t(img.step1()), cx, cy, c, s, offs, oy, x);
+    internal::BilinearRow8Avx2(img.ptr<float>(), std::ptrdiff_t(img.step1()), cx, cy, c, s, offs, oy, y);
+    for (int j = 0; j < 8; ++j) {
+      std::uint32_t bx, by;
+      std::memcpy(&bx, &x[j], 4);
+      std::memcpy(&by, &y[j], 4);
+      ASSERT_EQ(bx, by) << k << " lane " << j << ": " << x[j] << " vs " << y[j];
     }
   }
 }

@@ -51,4 +51,19 @@ bool HasAvx2() {
 
 DiscMomentsFn DiscMomentsSimd() { return HasAvx2() ? DiscMomentsAvx2 : nullptr; }
 
+void BilinearRow8Scalar(const float* img, std::ptrdiff_t stride, float cx, float cy, float c, float s,
+                        const float* offs, float oy, float* out) {
+  for (int j = 0; j < 8; ++j) {
+    const float ox = offs[j];
+    const float x = cx + c * ox - s * oy, y = cy + s * ox + c * oy;
+    const int x0 = int(x), y0 = int(y);
+    const float fx = x - float(x0), fy = y - float(y0);
+    const float* r0 = img + std::ptrdiff_t(y0) * stride + x0;
+    const float* r1 = r0 + stride;
+    out[j] = (1 - fy) * ((1 - fx) * r0[0] + fx * r0[1]) + fy * ((1 - fx) * r1[0] + fx * r1[1]);
+  }
+}
+
+BilinearRow8Fn BestBilinearRow8() { return HasAvx2() ? BilinearRow8Avx2 : BilinearRow8Scalar; }
+
 }  // namespace mvkp::internal

@@ -37,4 +37,26 @@ void DiscMomentsAvx2(const std::uint8_t* centre, std::ptrdiff_t step, const Disc
   m01 = HorizontalSum(acc01);
 }
 
+void BilinearRow8Avx2(const float* img, std::ptrdiff_t stride, float cx, float cy, float c, float s,
+                      const float* offs, float oy, float* out) {
+  const __m256 ox = _mm256_loadu_ps(offs);
+  const __m256 vc = _mm256_set1_ps(c), vs = _mm256_set1_ps(s);
+  const __m256 soy = _mm256_set1_ps(s * oy), coy = _mm256_set1_ps(c * oy);
+  const __m256 x = _mm256_sub_ps(_mm256_add_ps(_mm256_set1_ps(cx), _mm256_mul_ps(vc, ox)), soy);
+  const __m256 y = _mm256_add_ps(_mm256_add_ps(_mm256_set1_ps(cy), _mm256_mul_ps(vs, ox)), coy);
+  const __m256i x0 = _mm256_cvttps_epi32(x), y0 = _mm256_cvttps_epi32(y);
+  const __m256 fx = _mm256_sub_ps(x, _mm256_cvtepi32_ps(x0)), fy = _mm256_sub_ps(y, _mm256_cvtepi32_ps(y0));
+  const __m256i idx = _mm256_add_epi32(_mm256_mullo_epi32(y0, _mm256_set1_epi32(int(stride))), x0);
+  const __m256i one = _mm256_set1_epi32(1), down = _mm256_set1_epi32(int(stride));
+  const __m256 i00 = _mm256_i32gather_ps(img, idx, 4);
+  const __m256 i01 = _mm256_i32gather_ps(img, _mm256_add_epi32(idx, one), 4);
+  const __m256 i10 = _mm256_i32gather_ps(img, _mm256_add_epi32(idx, down), 4);
+  const __m256 i11 = _mm256_i32gather_ps(img, _mm256_add_epi32(_mm256_add_epi32(idx, down), one), 4);
+  const __m256 ones = _mm256_set1_ps(1.f);
+  const __m256 gx = _mm256_sub_ps(ones, fx), gy = _mm256_sub_ps(ones, fy);
+  const __m256 top = _mm256_add_ps(_mm256_mul_ps(gx, i00), _mm256_mul_ps(fx, i01));
+  const __m256 bottom = _mm256_add_ps(_mm256_mul_ps(gx, i10), _mm256_mul_ps(fx, i11));
+  _mm256_storeu_ps(out, _mm256_add_ps(_mm256_mul_ps(gy, top), _mm256_mul_ps(fy, bottom)));
+}
+
 }  // namespace mvkp::internal

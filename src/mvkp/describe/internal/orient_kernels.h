@@ -36,4 +36,21 @@ void DiscMomentsAvx2(const std::uint8_t* centre, std::ptrdiff_t step, const Disc
 // The AVX2 kernel when the CPU has AVX2, else null.
 DiscMomentsFn DiscMomentsSimd();
 
+// One row of the describer's 8 x 8 grid of rotated samples: for lane j,
+// x = (cx + c * offs[j]) - s * oy and y = (cy + s * offs[j]) + c * oy, and
+// out[j] the bilinear interpolation of the float image `img` (row stride
+// `stride` floats) at (x, y): (1 - fy) * ((1 - fx) * I00 + fx * I01) +
+// fy * ((1 - fx) * I10 + fx * I11). Every sample must satisfy 0 <= x <
+// cols - 2 and 0 <= y < rows - 2. The AVX2 version gathers eight samples at
+// once with the same float operations in the same order (its file is
+// compiled without contraction into fused multiply-adds), so both agree bit
+// for bit (tested).
+void BilinearRow8Scalar(const float* img, std::ptrdiff_t stride, float cx, float cy, float c, float s,
+                        const float* offs, float oy, float* out);
+void BilinearRow8Avx2(const float* img, std::ptrdiff_t stride, float cx, float cy, float c, float s,
+                      const float* offs, float oy, float* out);
+using BilinearRow8Fn = void (*)(const float*, std::ptrdiff_t, float, float, float, float, const float*, float, float*);
+// The AVX2 kernel when the CPU has AVX2, else the scalar one.
+BilinearRow8Fn BestBilinearRow8();
+
 }  // namespace mvkp::internal
