@@ -228,12 +228,12 @@ Matcher::Matcher(const Model& model, const MatchOptions& options, std::unique_pt
   const std::vector<std::int32_t> place = LocationPlaces(model_);
   places_.resize(model_.labels.size());
   for (std::size_t i = 0; i < places_.size(); ++i) places_[i] = place[model_.labels[i]];
-  location_rows_.assign(model_.locations.size(), {});
-  for (std::size_t i = 0; i < model_.labels.size(); ++i) location_rows_[model_.labels[i]].push_back(int(i));
+  std::vector<std::vector<int>> location_rows(model_.locations.size());  // per location: its centres' rows
+  for (std::size_t i = 0; i < model_.labels.size(); ++i) location_rows[model_.labels[i]].push_back(int(i));
   location_blocks_.assign(model_.locations.size(), {});
   const int dims = model_.descriptors.cols;
-  for (std::size_t l = 0; l < location_rows_.size(); ++l) {
-    const std::vector<int>& rows = location_rows_[l];
+  for (std::size_t l = 0; l < location_rows.size(); ++l) {
+    const std::vector<int>& rows = location_rows[l];
     if (rows.empty()) continue;
     const std::size_t nb = (rows.size() + 7) / 8;
     std::vector<float>& blk = location_blocks_[l];

@@ -174,7 +174,6 @@ class Matcher {
   MatchOptions options_;
   std::unique_ptr<KnnIndex> index_;
   std::vector<std::int32_t> places_;  // per centre: its place (see LocationPlaces)
-  std::vector<std::vector<int>> location_rows_;  // per location: its centres' rows
   // Per location: its centres in blocks of 8, transposed ([block][dim][8]),
   // padded with copies of its first centre (which change no minimum), for
   // the refinement's distances 8 centres at a time.
