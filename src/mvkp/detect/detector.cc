@@ -152,9 +152,9 @@ std::vector<Keypoint> DetectMinEigen(const cv::Mat& gray, const DetectorOptions&
       cand.push_back({float(x) + ox, float(y) + oy, v, 0.f});
     }
   }
-  // Strongest first, ties by (y, x). Sorted as 64-bit keys (strength bits
-  // inverted over the candidate's index: strengths are >= 0, so their bit
-  // patterns order as the values do), then runs of equal strength by (y, x).
+  // Strongest first, ties by (y, x). Sorted by (inverted strength bits,
+  // candidate index): strengths are >= 0, so their bit patterns order as the
+  // values do; then runs of equal strength by (y, x).
   const auto by_order = [](const Keypoint& a, const Keypoint& b) {
     return a.strength > b.strength || (a.strength == b.strength && (a.y < b.y || (a.y == b.y && a.x < b.x)));
   };
