@@ -189,10 +189,15 @@ class Stage2 {
     const GuidedRefinement& g = r.refinement;
     out["refinement"] = {{"refined", g.refined}, {"tried", g.tried},   {"found", g.found},
                          {"inliers", g.inliers}, {"rms_px", g.rms_px}, {"shift_px", g.shift_px}};
+    const OutlineRefinement& ol = r.outline;
+    out["outline_refinement"] = {{"ran", ol.ran},     {"replaced", ol.replaced}, {"visible", ol.visible},
+                                 {"pairs", ol.pairs}, {"first_pairs", ol.first_pairs},
+                                 {"move_px", ol.move_px}};
     out["time_ms"] = {{"read", read_ms},
                       {"match", r.match_ms},
                       {"pose", r.pose_ms},
                       {"refine", r.refine_ms},
+                      {"outline", r.outline_ms},
                       {"total", total.ElapsedMs()}};
     if (!draw.empty()) SaveImage(draw, Draw(view_path, p));
     return out;
@@ -355,6 +360,20 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
   c->add_flag("!--no-refine", a->reg.refine,
               "keep the camera from the tiles' matches (default: refine it against the whole nadir photo by "
               "correlation at the corners it predicts)");
+  c->add_flag("!--no-outline-refine", a->reg.outline_refine,
+              "keep the camera from the nadir photo (default: refit it to the LiDAR's roof outlines seen as edges "
+              "in the view, and take the refit when it moves them by more than --outline-keep pixels)");
+  c->add_option("--outline-keep", a->reg.outline.keep_px,
+                "outline refit move (median, view px) above which it replaces the camera")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  c->add_option("--outline-gain", a->reg.outline.min_gain,
+                "outline points the refit must pair, relative to the camera it replaces")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  c->add_option("--outline-radii", a->reg.outline.radii, "pairing radius of each outline refit round, view px")
+      ->check(CLI::Range(0.5, 64.0))
+      ->capture_default_str();
   c->add_option("--refine-ncc", a->reg.guided.min_ncc, "correlation a refinement match needs")
       ->check(CLI::Range(0.05, 0.99))
       ->capture_default_str();

@@ -361,9 +361,10 @@ void BindAerial(py::module_& m) {
       "nadir photo (trains MVKP on its tiles), then register() per view.")
       .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
                        std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
-                       int min_inliers, double max_height_step_m, bool refine) {
+                       int min_inliers, double max_height_step_m, bool refine, bool outline_refine) {
              ViewRegistrarOptions o;
              o.refine = refine;
+             o.outline_refine = outline_refine;
              o.tiles.tile_px = tile_px;
              o.nadir_gsd_m = nadir_gsd_m;
              o.max_height_step_m = max_height_step_m;
@@ -382,11 +383,13 @@ void BindAerial(py::module_& m) {
            py::arg("lean") = std::pair<double, double>(0.0, 0.0), py::arg("tile_px") = 320,
            py::arg("nadir_gsd_m") = 0.4, py::arg("scales") = std::vector<double>{1.0, 0.5, 0.3},
            py::arg("min_inliers") = 15, py::arg("max_height_step_m") = 2.0, py::arg("refine") = true,
+           py::arg("outline_refine") = true,
            "depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); "
            "nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; "
            "lean: stage 1's lean_depth_px_per_m; max_height_step_m: pairs within a tile pixel of a larger height "
            "step of the DSM are not lifted (0: keep all); refine: refine the camera against the whole nadir photo "
-           "(correlation at the corners it predicts).")
+           "(correlation at the corners it predicts); outline_refine: then refit it to the DSM's roof outlines seen as "
+           "edges of the view, which undoes a stage-1 error.")
       .def(
           "register",
           [](const ViewRegistrar& reg, py::handle view, double hfov, double focal) {
@@ -437,10 +440,19 @@ void BindAerial(py::module_& m) {
             gr["rms_px"] = r.refinement.rms_px;
             gr["shift_px"] = r.refinement.shift_px;
             out["refinement"] = gr;
+            py::dict ol;
+            ol["ran"] = r.outline.ran;
+            ol["replaced"] = r.outline.replaced;
+            ol["visible"] = r.outline.visible;
+            ol["pairs"] = r.outline.pairs;
+            ol["first_pairs"] = r.outline.first_pairs;
+            ol["move_px"] = r.outline.move_px;
+            out["outline_refinement"] = ol;
             py::dict t;
             t["match"] = r.match_ms;
             t["pose"] = r.pose_ms;
             t["refine"] = r.refine_ms;
+            t["outline"] = r.outline_ms;
             out["time_ms"] = t;
             return out;
           },
@@ -449,7 +461,8 @@ void BindAerial(py::module_& m) {
           "(or focal length focal px), principal point at the centre. A dict: ok, reason, camera ((3, 4): world "
           "metres east-north-up -> view px, or None), K, R, centre_m, matches ((n, 4) nadir x, y, view x, y), "
           "inlier ((n,) bool), inliers, rms_px, scale, refinement (refined, tried, found, inliers, rms_px, "
-          "shift_px), time_ms. 'No registration' is ok False, not an error.")
+          "shift_px), outline_refinement (ran, replaced, visible, pairs, first_pairs, move_px), time_ms. "
+          "'No registration' is ok False, not an error.")
       .def_property_readonly("tiles", &ViewRegistrar::tiles, "MVKP tiles trained")
       .def_property_readonly("train_ms", &ViewRegistrar::train_ms, "training time, ms")
       .def_property_readonly("nadir_gsd_m", &ViewRegistrar::nadir_gsd_m, "metres per nadir pixel (from stage 1)")

@@ -130,6 +130,10 @@ def test_view_registrar_equals_cli(tmp_path):
         assert g["refined"] == cli_views[k]["refinement"]["refined"]
         if g["refined"]:  # refitted on correlation matches all over the view: sub-pixel
             assert g["inliers"] >= 30 and err.mean() <= 1.0, (g, err.mean())
+        ol, cli_ol = r["outline_refinement"], cli_views[k]["outline_refinement"]
+        assert (ol["ran"], ol["replaced"], ol["pairs"], ol["first_pairs"]) == \
+            (cli_ol["ran"], cli_ol["replaced"], cli_ol["pairs"], cli_ol["first_pairs"])
+        assert ol["pairs"] <= ol["visible"] and (not ol["replaced"] or ol["move_px"] > 1.5)
     assert answered >= 1
     with pytest.raises(ValueError):
         mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0)

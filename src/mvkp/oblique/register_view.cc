@@ -12,6 +12,7 @@ void ViewRegistrarOptions::Check() const {
   tiles.Check();
   pose.Check();
   guided.Check();
+  outline.Check();
   Require(!scales.empty(), ErrorCode::kInvalidArgument, "ViewRegistrarOptions: at least one scale");
   for (double s : scales)
     Require(s >= 0.05 && s <= 4, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: scales must be in [0.05, 4]");
@@ -58,7 +59,8 @@ ViewRegistrar::ViewRegistrar(const cv::Mat1f& depth, double res_m, const cv::Mat
       nadir_gsd_m_(NadirGsd(nadir.size(), nadir_to_depth, res_m)),
       tiles_(nadir, TileOptions(options, nadir_gsd_m_)),
       lifter_(depth, res_m, nadir_to_depth, lean),
-      refiner_(nadir, lifter_, options.guided) {}
+      refiner_(nadir, lifter_, options.guided),
+      outline_(depth, res_m, options.outline) {}
 
 ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d& K) const {
   Require(!view.empty() && view.type() == CV_8UC1, ErrorCode::kInvalidArgument,
@@ -95,6 +97,11 @@ ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d&
     for (const auto& m : r.matches) px.emplace_back(m.view);
     r.refinement = refiner_.Refine(view, K, lifter_, r.world, px, &r.pose);
     r.refine_ms = tm.ElapsedMs();
+  }
+  if (r.pose.ok && options_.outline_refine) {
+    tm.Restart();
+    r.outline = outline_.Refine(view, K, lifter_, &r.pose);
+    r.outline_ms = tm.ElapsedMs();
   }
   if (r.pose.ok) {
     std::vector<int> tiles, cells;

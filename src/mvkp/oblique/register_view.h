@@ -10,6 +10,7 @@
 
 #include "mvkp/oblique/guided_refine.h"
 #include "mvkp/oblique/nadir_tiles.h"
+#include "mvkp/oblique/outline_refine.h"
 #include "mvkp/oblique/view_pose.h"
 
 namespace mvkp {
@@ -38,6 +39,10 @@ struct ViewRegistrarOptions {
   // (guided_refine.h) when `refine`.
   bool refine = true;
   GuidedRefineOptions guided;
+  // Then against the LiDAR's own roof outlines (outline_refine.h), which
+  // corrects a camera that a stage-1 error displaced, when `outline_refine`.
+  bool outline_refine = true;
+  OutlineRefineOptions outline;
   void Check() const;  // throws Error(kInvalidArgument)
 };
 
@@ -51,6 +56,8 @@ struct ViewRegistration {
   double inlier_height_span_m = 0;
   GuidedRefinement refinement;       // what the guided refinement did
   double refine_ms = 0;
+  OutlineRefinement outline;         // what the outline refinement did
+  double outline_ms = 0;
 };
 
 class ViewRegistrar {
@@ -75,6 +82,7 @@ class ViewRegistrar {
   NadirTiles tiles_;
   NadirLifter lifter_;
   GuidedRefiner refiner_;
+  OutlineRefiner outline_;
 };
 
 // Ground metres per nadir pixel at the centre of a photo of `size`, from
