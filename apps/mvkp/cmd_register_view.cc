@@ -72,6 +72,7 @@ struct RegisterViewArgs : Stage2Args {
 
 struct RegisterAllArgs : Stage2Args {
   std::string depth, nadir, stage1_in, stage1_out, draw_dir;
+  bool correct_stage1 = true;
   std::vector<std::string> views;
 };
 
@@ -141,14 +142,38 @@ class Stage2 {
 
   double train_ms() const { return reg_.train_ms(); }
 
+  // One view's registration with what its JSON answer needs.
+  struct Run {
+    ViewRegistration r;
+    cv::Matx33d K, nadir_to_depth;  // the stage 1 it was registered through
+    double read_ms = 0, total_ms = 0;
+  };
+  Run Compute(const std::string& view_path) const {
+    Timer total;
+    Run run;
+    const cv::Mat view = LoadImageGray(view_path);
+    run.K = ViewIntrinsics(view.size(), a_.hfov, a_.focal);
+    run.read_ms = total.ElapsedMs();
+    run.r = reg_.Register(view, run.K);
+    run.nadir_to_depth = reg_.nadir_to_depth();
+    run.total_ms = total.ElapsedMs();
+    return run;
+  }
+
+  // Stage 1 replaced (the tiles kept): later views are registered through it.
+  void Restage(const cv::Matx33d& nadir_to_depth) { reg_.Restage(nadir_to_depth, s1_.lean); }
+  const cv::Matx33d& nadir_to_depth() const { return reg_.nadir_to_depth(); }
+
   // The view's camera as the JSON answer; `draw`: the view with the LiDAR's
   // building outlines reprojected ("" for none).
   Json Register(const std::string& view_path, const std::string& draw) const {
-    Timer total;
-    const cv::Mat view = LoadImageGray(view_path);
-    const cv::Matx33d K = ViewIntrinsics(view.size(), a_.hfov, a_.focal);
-    const double read_ms = total.ElapsedMs();
-    const ViewRegistration r = reg_.Register(view, K);
+    return Answer(view_path, Compute(view_path), draw);
+  }
+
+  Json Answer(const std::string& view_path, const Run& run, const std::string& draw) const {
+    const ViewRegistration& r = run.r;
+    const cv::Matx33d& K = run.K;
+    const double read_ms = run.read_ms;
     const ViewPose& p = r.pose;
     const double res = s1_.res_m, z0 = reg_.lifter().ground_height();
     Json out;
@@ -166,7 +191,7 @@ class Stage2 {
       const cv::Matx33d G = GroundHomography(p.camera, res, z0);
       out["ground_z_m"] = z0;
       out["ground_homography"] = Mat(G, 3, 3);  // depth px at the ground height -> view px
-      out["homography"] = Mat(G * s1_.nadir_to_depth, 3, 3);  // nadir px -> view px, for the ground plane
+      out["homography"] = Mat(G * run.nadir_to_depth, 3, 3);  // nadir px -> view px, for the ground plane
     } else {
       out["camera"] = nullptr;
       out["homography"] = nullptr;
@@ -198,7 +223,7 @@ class Stage2 {
                       {"pose", r.pose_ms},
                       {"refine", r.refine_ms},
                       {"outline", r.outline_ms},
-                      {"total", total.ElapsedMs()}};
+                      {"total", run.total_ms}};
     if (!draw.empty()) SaveImage(draw, Draw(view_path, p));
     return out;
   }
@@ -231,7 +256,7 @@ class Stage2 {
   const geo::DepthRaster& d_;
   Stage1 s1_;
   const Stage2Args& a_;
-  ViewRegistrar reg_;
+  ViewRegistrar reg_;  // Restage changes its stage 1
   mutable std::optional<std::vector<BuildingRegion>> outlines_;  // the depth's building regions, for Draw
 };
 
@@ -293,13 +318,42 @@ int RunRegisterAll(RegisterAllArgs& a) {
   } else {
     const Stage1 s1 = ParseStage1(s1j, a.stage1_in.empty() ? "stage 1" : a.stage1_in, d, a.depth, nadir, a.nadir,
                                   a.res_m);
-    const Stage2 stage2(d, nadir, s1, a);
+    Stage2 stage2(d, nadir, s1, a);
     train_ms = stage2.train_ms();
-    for (const auto& v : a.views) {
+    std::vector<Stage2::Run> runs;
+    for (const auto& v : a.views) runs.push_back(stage2.Compute(v));
+    // Stage 1 corrected by the views: when the LiDAR's outlines replaced the
+    // cameras of at least two views, their pairs tell where stage 1 put the
+    // nadir photo wrong; every view is then registered again through the
+    // corrected stage 1 (a view keeps its first answer when the second
+    // finds no camera).
+    Json corr = {{"applied", false}};
+    if (a.correct_stage1) {
+      std::vector<ViewRegistration> regs;
+      for (const auto& r : runs) regs.push_back(r.r);
+      cv::Matx33d C;
+      int inl = 0;
+      const bool ok = Stage1Correction(regs, s1.res_m, &C, &inl);
+      corr["inliers"] = inl;
+      if (ok) {
+        const cv::Matx33d H = C * s1.nadir_to_depth;
+        stage2.Restage(H);
+        int changed = 0;
+        for (std::size_t i = 0; i < runs.size(); ++i) {
+          Stage2::Run second = stage2.Compute(a.views[i]);
+          if (second.r.pose.ok || !runs[i].r.pose.ok) runs[i] = std::move(second), ++changed;
+        }
+        corr = {{"applied", true}, {"inliers", inl}, {"correction", Mat(C, 3, 3)}, {"homography", Mat(H, 3, 3)},
+                {"views_reregistered", changed}};
+      }
+    }
+    out["stage1"]["correction"] = corr;
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+      const std::string& v = a.views[i];
       std::string draw;
       if (!a.draw_dir.empty())
         draw = (std::filesystem::path(a.draw_dir) / (std::filesystem::path(v).stem().string() + "-registered.jpg")).string();
-      views.push_back(stage2.Register(v, draw));
+      views.push_back(stage2.Answer(v, runs[i], draw));
     }
   }
   out["views"] = views;
@@ -415,6 +469,9 @@ void RegisterRegisterAll(CLI::App& app, int* code) {
       ->check(CLI::ExistingFile);
   c->add_option("--save-stage1", a->stage1_out, "write the stage-1 answer (for register-view)");
   c->add_option("--draw-dir", a->draw_dir, "write each view with the LiDAR's building outlines reprojected here");
+  c->add_flag("!--no-correct-stage1", a->correct_stage1,
+              "keep stage 1 as given (default: when the LiDAR's outlines replaced the cameras of two or more views, "
+              "correct stage 1 from their pairs and register every view again through it)");
   c->callback([a, code] { *code = RunRegisterAll(*a); });
 }
 

@@ -463,6 +463,16 @@ void BindAerial(py::module_& m) {
           "inlier ((n,) bool), inliers, rms_px, scale, refinement (refined, tried, found, inliers, rms_px, "
           "shift_px), outline_refinement (ran, replaced, visible, pairs, first_pairs, move_px), time_ms. "
           "'No registration' is ok False, not an error.")
+      .def(
+          "restage",
+          [](ViewRegistrar& reg, py::handle nadir_to_depth, std::pair<double, double> lean) {
+            const cv::Matx33d H = ArrayToMatx33(nadir_to_depth, "nadir_to_depth");
+            py::gil_scoped_release release;
+            reg.Restage(H, cv::Point2d(lean.first, lean.second));
+          },
+          py::arg("nadir_to_depth"), py::kw_only(), py::arg("lean") = std::pair<double, double>(0.0, 0.0),
+          "Replace stage 1 (e.g. by the correction register-all reports in stage1.correction.homography), "
+          "keeping the trained tiles.")
       .def_property_readonly("tiles", &ViewRegistrar::tiles, "MVKP tiles trained")
       .def_property_readonly("train_ms", &ViewRegistrar::train_ms, "training time, ms")
       .def_property_readonly("nadir_gsd_m", &ViewRegistrar::nadir_gsd_m, "metres per nadir pixel (from stage 1)")

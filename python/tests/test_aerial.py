@@ -135,6 +135,14 @@ def test_view_registrar_equals_cli(tmp_path):
             (cli_ol["ran"], cli_ol["replaced"], cli_ol["pairs"], cli_ol["first_pairs"])
         assert ol["pairs"] <= ol["visible"] and (not ol["replaced"] or ol["move_px"] > 1.5)
     assert answered >= 1
+    # the same stage 1 again: the same cameras (the tiles are kept)
+    reg.restage(np.array(t["photo_to_depth"]), lean=tuple(lean))
+    again = reg.register(mvkp.read_optical(views[0]), hfov=50.0)
+    assert again["ok"] == cli_views[0]["ok"]
+    if again["ok"]:
+        np.testing.assert_allclose(again["camera"], np.array(cli_views[0]["camera"]), rtol=1e-9, atol=1e-6)
+    with pytest.raises(mvkp.InvalidArgumentError):
+        reg.restage(np.zeros((3, 3)))  # singular
     with pytest.raises(ValueError):
         mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0)
     with pytest.raises(ValueError):

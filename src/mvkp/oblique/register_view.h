@@ -71,6 +71,11 @@ class ViewRegistrar {
   // The camera of an 8-bit grey view with intrinsics K (no distortion).
   ViewRegistration Register(const cv::Mat& view, const cv::Matx33d& K) const;
 
+  // Replaces stage 1 (as at construction), keeping the trained tiles: what
+  // a correction of stage 1 by the views (Stage1Correction) needs.
+  void Restage(const cv::Matx33d& nadir_to_depth, cv::Point2d lean_px_per_m);
+  const cv::Matx33d& nadir_to_depth() const { return nadir_to_depth_; }
+
   double train_ms() const { return tiles_.train_ms(); }
   double nadir_gsd_m() const { return nadir_gsd_m_; }   // of the photo given
   std::size_t tiles() const { return tiles_.size(); }
@@ -78,12 +83,32 @@ class ViewRegistrar {
 
  private:
   ViewRegistrarOptions options_;
+  cv::Mat1f depth_;   // kept for Restage
+  cv::Mat nadir_;
+  double res_m_;
+  cv::Matx33d nadir_to_depth_;
   double nadir_gsd_m_;
   NadirTiles tiles_;
   NadirLifter lifter_;
   GuidedRefiner refiner_;
   OutlineRefiner outline_;
 };
+
+// Stage 1 corrected by the views whose camera the LiDAR's outlines replaced
+// (outline_refine.h): each of their agreeing pairs was lifted through stage
+// 1 to a depth pixel, while the replaced camera sees its view pixel at
+// another point of the same horizontal plane. A similarity of the depth
+// plane (depth px -> depth px) is fitted to these by RANSAC (`ransac_px`,
+// depth px); the corrected stage 1 is C * nadir_to_depth. False (C
+// untouched) with fewer than `min_inliers` agreeing pairs, or fewer than
+// `min_views` replaced views among them.
+struct Stage1CorrectionOptions {
+  double ransac_px = 1.0;
+  int min_inliers = 30;
+  int min_views = 2;
+};
+bool Stage1Correction(const std::vector<ViewRegistration>& views, double res_m, cv::Matx33d* C,
+                      int* inliers = nullptr, const Stage1CorrectionOptions& options = {});
 
 // Ground metres per nadir pixel at the centre of a photo of `size`, from
 // stage 1's homography and the depth cell size.
