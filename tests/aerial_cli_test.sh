@@ -275,6 +275,44 @@ assert a["ok"] == b["ok"] and a["camera"] == b["camera"], (a["reason"], b["reaso
 else
   fail "register-view exits 0 ($(first_err))"
 fi
+# A stage 1 that puts the nadir photo 5 depth px (2.5 m) off, as a real
+# stage-1 error would: every camera through it is 6-8 px off. The LiDAR's
+# outlines must replace them, and register-all must then correct stage 1
+# from those views and register all four again through it.
+"$PY" - "$RV" <<'PYEOF'
+import json, sys
+import numpy as np
+d = sys.argv[1]
+s1 = json.load(open(d + "/stage1.json"))
+s1["homography"] = (np.array([[1, 0, 4.0], [0, 1, -3.0], [0, 0, 1]]) @ np.array(s1["homography"])).tolist()
+json.dump(s1, open(d + "/stage1_shifted.json", "w"))
+PYEOF
+if "$MVKP" register-all "$RV/depth.tif" "$RV/photo.png" "$RV"/oblique_0{0,1,2,3}.png --stage1 "$RV/stage1_shifted.json" \
+    --json > "$T/rshift.json" 2> "$T/err"; then
+  check "register-all: a displaced stage 1 is corrected by the views, cameras within 2 px" "$PY" - "$T/rshift.json" "$RV" <<'PYEOF'
+import json, sys
+import numpy as np
+j = json.load(open(sys.argv[1]))
+c = j["stage1"]["correction"]
+assert c["applied"] and c["inliers"] >= 30, c
+C = np.array(c["correction"])
+assert abs(C[0, 2] + 4) < 0.6 and abs(C[1, 2] - 3) < 0.6, C  # the shift undone, depth px
+answered = 0
+for k, r in enumerate(j["views"]):
+    if not r["ok"]:
+        continue
+    v = json.load(open("%s/oblique_%02d.json" % (sys.argv[2], k)))
+    P = np.array(r["camera"])
+    X = np.array([q["world_m"] + [1] for q in v["check_points"]]) @ P.T
+    e = np.linalg.norm(X[:, :2] / X[:, 2:] - np.array([q["oblique_px"] for q in v["check_points"]]), axis=1).mean()
+    assert e <= 2, "view %d: camera %.1f px off" % (k, e)
+    answered += 1
+assert answered >= 2, "only %d of 4 views answered" % answered
+print("answered", answered)
+PYEOF
+else
+  fail "register-all with a displaced stage 1 exits 0 ($(first_err))"
+fi
 expect_fail "register-view: stage 1 without a registration" "no registration" "$MVKP" register-view \
   "$RV/depth.tif" "$RV/photo.png" "$RV/stage1_none.json" "$RV/oblique_00.png"
 expect_fail "register-view: stage 1 of another depth raster" "does not match" "$MVKP" register-view \
