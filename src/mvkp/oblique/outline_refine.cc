@@ -143,6 +143,7 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
     for (std::size_t i = 0; i < X.size(); ++i) {
       cv::Point2d u;
       if (!Project(P, X[i], &u)) continue;
+      if (!(u.x > -0.5 && u.y > -0.5 && u.x < view.cols - 0.5 && u.y < view.rows - 0.5)) continue;
       const int x = int(std::lround(u.x)), y = int(std::lround(u.y));
       if (x < 0 || y < 0 || x >= view.cols || y >= view.rows) continue;
       const int b = bin[i];

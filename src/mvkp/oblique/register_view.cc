@@ -94,8 +94,9 @@ bool Stage1Correction(const std::vector<ViewRegistration>& views, double res_m, 
       if (!(std::abs(cv::determinant(G)) > 1e-12)) continue;
       const cv::Vec3d q = G.inv() * cv::Vec3d(r.matches[k].view.x, r.matches[k].view.y, 1);
       if (!(std::abs(q[2]) > 1e-12)) continue;
-      const cv::Point2f dst(float(q[0] / q[2]), float(q[1] / q[2]));
-      if (!std::isfinite(dst.x) || !std::isfinite(dst.y)) continue;
+      const double qx = q[0] / q[2], qy = q[1] / q[2];
+      if (!(std::abs(qx) < 1e7 && std::abs(qy) < 1e7)) continue;  // also NaN
+      const cv::Point2f dst{float(qx), float(qy)};
       from.emplace_back(float(w.x / res_m), float(-w.y / res_m));
       to.push_back(dst);
       view_of.push_back(int(v));
