@@ -60,37 +60,32 @@ Contour ResampleContour(const Contour& contour, int n) {
   return out;
 }
 
-ShapeDescriptor DescribeContour(const Contour& contour, const ShapeContextOptions& opt) {
+ShapeDescriptor DescribeAnchors(const Contour& anchors, const std::vector<double>& tangents, const Contour& samples,
+                                const std::vector<float>& weights, double scale, const ShapeContextOptions& opt) {
   ShapeDescriptor d;
-  const int n = opt.points;
-  Contour p = ResampleContour(contour, n);
-  if (p.empty()) return d;
-  const cv::RotatedRect box = cv::minAreaRect(p);
-  const double diag = std::hypot(box.size.width, box.size.height);
-  if (!(diag > 1e-6)) return d;
+  const int n = int(anchors.size());
+  CV_Assert(tangents.size() == anchors.size() && weights.size() == samples.size());
+  if (n == 0 || samples.empty() || !(scale > 1e-6)) return d;
   const int R = opt.radial_bins, A = opt.angular_bins, B = R * A;
   const double log_in = std::log(opt.r_inner), log_out = std::log(opt.r_outer);
   const double r_step = R > 1 ? (log_out - log_in) / (R - 1) : 1.0;
-  std::vector<double> tangent(n);
-  for (int j = 0; j < n; ++j) {
-    const cv::Point2f t = p[(j + opt.tangent_span) % n] - p[(j - opt.tangent_span + n) % n];
-    tangent[j] = std::atan2(t.y, t.x);
-  }
   d.hist = cv::Mat::zeros(n, B, CV_32F);
   const double two_pi = 2 * CV_PI;
   for (int j = 0; j < n; ++j) {
     float* h = d.hist.ptr<float>(j);
-    for (int k = 0; k < n; ++k) {
-      if (k == j) continue;
-      const double dx = p[k].x - p[j].x, dy = p[k].y - p[j].y;
-      const double r = std::hypot(dx, dy) / diag;
+    double total = 0;
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      const double dx = samples[k].x - anchors[j].x, dy = samples[k].y - anchors[j].y;
+      if (dx == 0 && dy == 0) continue;  // the anchor itself
+      const double r = std::hypot(dx, dy) / scale, w = weights[k];
+      total += w;
       // soft (bilinear) binning in log-radius and angle: robust to the
       // resampling phase and to contour noise
       double rf = 0;
-      if (R > 1) rf = r > 0 ? std::clamp((std::log(r) - log_in) / r_step, 0.0, double(R - 1)) : 0.0;
+      if (R > 1) rf = std::clamp((std::log(r) - log_in) / r_step, 0.0, double(R - 1));
       const int r0 = std::min(int(rf), R - 1), r1 = std::min(r0 + 1, R - 1);
       const double wr1 = rf - r0, wr0 = 1 - wr1;
-      double a = std::atan2(dy, dx) - tangent[j];
+      double a = std::atan2(dy, dx) - tangents[j];
       a = std::fmod(a, two_pi);
       if (a < 0) a += two_pi;
       double af = a / two_pi * A - 0.5;
@@ -99,16 +94,33 @@ ShapeDescriptor DescribeContour(const Contour& contour, const ShapeContextOption
       if (a0 >= A) a0 = A - 1;
       const int a1 = (a0 + 1) % A;
       const double wa1 = af - a0, wa0 = 1 - wa1;
-      h[r0 * A + a0] += float(wr0 * wa0);
-      h[r0 * A + a1] += float(wr0 * wa1);
-      h[r1 * A + a0] += float(wr1 * wa0);
-      h[r1 * A + a1] += float(wr1 * wa1);
+      h[r0 * A + a0] += float(w * wr0 * wa0);
+      h[r0 * A + a1] += float(w * wr0 * wa1);
+      h[r1 * A + a0] += float(w * wr1 * wa0);
+      h[r1 * A + a1] += float(w * wr1 * wa1);
     }
-    for (int b = 0; b < B; ++b) h[b] = std::sqrt(h[b] / float(n - 1));
+    if (total > 0)
+      for (int b = 0; b < B; ++b) h[b] = std::sqrt(h[b] / float(total));
   }
   d.hist_t = d.hist.t();
-  d.points = std::move(p);
-  d.scale = diag;
+  d.points = anchors;
+  d.scale = scale;
+  return d;
+}
+
+ShapeDescriptor DescribeContour(const Contour& contour, const ShapeContextOptions& opt) {
+  const int n = opt.points;
+  Contour p = ResampleContour(contour, n);
+  if (p.empty()) return {};
+  const cv::RotatedRect box = cv::minAreaRect(p);
+  const double diag = std::hypot(box.size.width, box.size.height);
+  if (!(diag > 1e-6)) return {};
+  std::vector<double> tangent(n);
+  for (int j = 0; j < n; ++j) {
+    const cv::Point2f t = p[(j + opt.tangent_span) % n] - p[(j - opt.tangent_span + n) % n];
+    tangent[j] = std::atan2(t.y, t.x);
+  }
+  ShapeDescriptor d = DescribeAnchors(p, tangent, p, std::vector<float>(p.size(), 1.0f), diag, opt);
   d.area = std::abs(SignedArea(d.points));
   return d;
 }

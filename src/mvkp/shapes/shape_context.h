@@ -60,6 +60,17 @@ double SignedArea(const Contour& contour);
 // Descriptor of one closed contour; empty() for a degenerate contour.
 ShapeDescriptor DescribeContour(const Contour& contour, const ShapeContextOptions& opt = {});
 
+// The general form (what DescribeContour computes with anchors = samples =
+// the resampled contour, unit weights, its own tangents and the box
+// diagonal): at each anchor j a log-polar histogram of `samples` (those
+// not at the anchor itself) weighted by `weights`, angles measured from
+// `tangents[j]` (radians), radii divided by `scale`. The edge-group track
+// of feature fusion (thesis §7.3.2) describes virtual anchor points of an
+// ordered edgelet list this way, its edgelets' midpoints weighted by their
+// lengths. area is left 0.
+ShapeDescriptor DescribeAnchors(const Contour& anchors, const std::vector<double>& tangents, const Contour& samples,
+                                const std::vector<float>& weights, double scale, const ShapeContextOptions& opt = {});
+
 // Partial-contour descriptors (§7.2.3, for segmentation leaks/breaks): when
 // the contour's polygon approximation has at least min_corners corners, the
 // contiguous runs of ceil(m/2)+1 of its m corners (each closed by the chord
