@@ -22,14 +22,19 @@ int OrientationBin(double dx, double dy) {
   return int(std::floor(a / (CV_PI / kBins) + 0.5)) % kBins;
 }
 
+}  // namespace
+
 // Distance to, and position of, the nearest edge pixel of each orientation.
-struct EdgeMaps {
+struct OutlineEdgeMaps {
+  cv::Size size;
   std::array<cv::Mat1f, kBins> dist;
   std::array<cv::Mat1i, kBins> label;
   std::array<std::vector<cv::Point>, kBins> where;  // label -> edge pixel
 };
 
-EdgeMaps BuildEdgeMaps(const cv::Mat& view, const OutlineRefineOptions& o) {
+namespace {
+
+OutlineEdgeMaps BuildEdgeMaps(const cv::Mat& view, const OutlineRefineOptions& o) {
   cv::Mat g, edges, gx, gy;
   cv::GaussianBlur(view, g, cv::Size(), o.edge_blur);
   cv::Canny(g, edges, o.canny_low, o.canny_high);
@@ -40,7 +45,8 @@ EdgeMaps BuildEdgeMaps(const cv::Mat& view, const OutlineRefineOptions& o) {
   for (int y = 0; y < view.rows; ++y)
     for (int x = 0; x < view.cols; ++x)
       if (edges.at<uchar>(y, x)) free[OrientationBin(gx.at<float>(y, x), gy.at<float>(y, x))](y, x) = 0;
-  EdgeMaps m;
+  OutlineEdgeMaps m;
+  m.size = view.size();
   for (int b = 0; b < kBins; ++b) {
     cv::distanceTransform(free[b], m.dist[b], m.label[b], cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
     int top = 0;
@@ -110,11 +116,51 @@ OutlineRefiner::OutlineRefiner(const cv::Mat1f& depth, double res_m, const Outli
   }
 }
 
+std::shared_ptr<const OutlineEdgeMaps> OutlineRefiner::EdgeMaps(const cv::Mat& view) const {
+  Require(!view.empty() && view.type() == CV_8UC1, ErrorCode::kInvalidArgument,
+          "OutlineRefiner: an 8-bit grey view is required");
+  return std::make_shared<const OutlineEdgeMaps>(BuildEdgeMaps(view, options_));
+}
+
 OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d& K, const NadirLifter& lifter,
                                          ViewPose* pose) const {
   Require(!view.empty() && view.type() == CV_8UC1, ErrorCode::kInvalidArgument,
           "OutlineRefiner: an 8-bit grey view is required");
   Require(pose != nullptr && pose->ok, ErrorCode::kInvalidArgument, "OutlineRefiner: a camera to refine is required");
+  std::shared_ptr<const OutlineEdgeMaps> maps;  // built only when enough outline points are seen
+  return Run(OutlineEdgeMaps{view.size(), {}, {}, {}}, K, lifter, options_.radii, false, pose, &view, &maps);
+}
+
+OutlineRefinement OutlineRefiner::Fit(const OutlineEdgeMaps& maps, const cv::Matx33d& K, const NadirLifter& lifter,
+                                      const std::vector<double>& radii, ViewPose* pose) const {
+  Require(pose != nullptr && pose->ok && !radii.empty(), ErrorCode::kInvalidArgument,
+          "OutlineRefiner::Fit: a camera and pairing radii are required");
+  for (double r : radii)
+    Require(r >= 0.5 && r <= 256, ErrorCode::kInvalidArgument, "OutlineRefiner::Fit: radii must be in [0.5, 256]");
+  return Run(maps, K, lifter, radii, true, pose, nullptr, nullptr);
+}
+
+double OutlineRefiner::Score(const OutlineEdgeMaps& maps, const cv::Matx34d& P, double radius, int* inside) const {
+  int in = 0, hit = 0;
+  for (std::size_t i = 0; i < world_.size(); ++i) {
+    cv::Point2d u, u2;
+    const cv::Point3d& w = world_[i];
+    const cv::Point3d w2(w.x + 0.5 * normal_[i][0], w.y + 0.5 * normal_[i][1], w.z);
+    if (!Project(P, w, &u) || !Project(P, w2, &u2)) continue;
+    const int x = int(std::lround(u.x)), y = int(std::lround(u.y));
+    if (x < 0 || y < 0 || x >= maps.size.width || y >= maps.size.height) continue;
+    if (cv::norm(u2 - u) < 0.05) continue;
+    ++in;
+    hit += maps.dist[std::size_t(OrientationBin(u2.x - u.x, u2.y - u.y))](y, x) <= radius;
+  }
+  if (inside) *inside = in;
+  return in ? double(hit) / in : 0.0;
+}
+
+OutlineRefinement OutlineRefiner::Run(const OutlineEdgeMaps& given, const cv::Matx33d& K, const NadirLifter& lifter,
+                                      const std::vector<double>& radii, bool always, ViewPose* pose,
+                                      const cv::Mat* view_image, std::shared_ptr<const OutlineEdgeMaps>* built) const {
+  const cv::Size view = given.size;
   OutlineRefinement out;
   const cv::Matx34d P0 = pose->camera;
   // outline points the first camera sees, each with the orientation bin its
@@ -126,7 +172,7 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
     const cv::Point3d& w = world_[i];
     const cv::Point3d w2(w.x + 0.5 * normal_[i][0], w.y + 0.5 * normal_[i][1], w.z);
     if (!Project(P0, w, &u) || !Project(P0, w2, &u2)) continue;
-    if (u.x < 0 || u.y < 0 || u.x > view.cols - 1 || u.y > view.rows - 1) continue;
+    if (u.x < 0 || u.y < 0 || u.x > view.width - 1 || u.y > view.height - 1) continue;
     if (cv::norm(u2 - u) < 0.05) continue;
     if (!lifter.Visible(w, pose->centre_m, 0.5)) continue;
     X.push_back(w);
@@ -135,7 +181,8 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
   out.visible = int(X.size());
   if (out.visible < options_.min_pairs) return out;
   out.ran = true;
-  const EdgeMaps maps = BuildEdgeMaps(view, options_);
+  if (view_image) *built = EdgeMaps(*view_image);
+  const OutlineEdgeMaps& maps = view_image ? **built : given;
 
   auto pair = [&](const cv::Matx34d& P, double radius, std::vector<cv::Point3f>* obj, std::vector<cv::Point2f>* img) {
     obj->clear();
@@ -143,9 +190,9 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
     for (std::size_t i = 0; i < X.size(); ++i) {
       cv::Point2d u;
       if (!Project(P, X[i], &u)) continue;
-      if (!(u.x > -0.5 && u.y > -0.5 && u.x < view.cols - 0.5 && u.y < view.rows - 0.5)) continue;
+      if (!(u.x > -0.5 && u.y > -0.5 && u.x < view.width - 0.5 && u.y < view.height - 0.5)) continue;
       const int x = int(std::lround(u.x)), y = int(std::lround(u.y));
-      if (x < 0 || y < 0 || x >= view.cols || y >= view.rows) continue;
+      if (x < 0 || y < 0 || x >= view.width || y >= view.height) continue;
       const int b = bin[i];
       if (!(maps.dist[b](y, x) <= radius)) continue;
       const cv::Point e = maps.where[b][std::size_t(maps.label[b](y, x))];
@@ -157,7 +204,7 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
 
   std::vector<cv::Point3f> obj;
   std::vector<cv::Point2f> img;
-  pair(P0, options_.radii.back(), &obj, &img);
+  pair(P0, radii.back(), &obj, &img);
   out.first_pairs = int(obj.size());
   cv::Mat rvec, tvec;
   cv::Rodrigues(cv::Mat(pose->R), rvec);
@@ -168,7 +215,7 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
   for (const auto& w : X) origin += w;
   origin *= 1.0 / double(X.size());
   std::vector<double> rounds;
-  for (int k = 0; k < options_.passes; ++k) rounds.insert(rounds.end(), options_.radii.begin(), options_.radii.end());
+  for (int k = 0; k < options_.passes; ++k) rounds.insert(rounds.end(), radii.begin(), radii.end());
   for (double radius : rounds) {
     pair(P, radius, &obj, &img);
     if (int(obj.size()) < options_.min_pairs) return out;
@@ -184,7 +231,7 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
     R.copyTo(Rx);
     P = CameraMatrix(K, Rx, cv::Vec3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
   }
-  pair(P, options_.radii.back(), &obj, &img);
+  pair(P, radii.back(), &obj, &img);
   out.pairs = int(obj.size());
   if (out.pairs < options_.min_pairs) return out;
   std::vector<double> moves;
@@ -195,7 +242,7 @@ OutlineRefinement OutlineRefiner::Refine(const cv::Mat& view, const cv::Matx33d&
   if (moves.empty()) return out;
   std::nth_element(moves.begin(), moves.begin() + moves.size() / 2, moves.end());
   out.move_px = moves[moves.size() / 2];
-  if (out.move_px > options_.keep_px && out.pairs >= options_.min_gain * out.first_pairs) {
+  if (always || (out.move_px > options_.keep_px && out.pairs >= options_.min_gain * out.first_pairs)) {
     cv::Matx33d R;
     cv::Mat Rm;
     cv::Rodrigues(rvec, Rm);

@@ -20,6 +20,7 @@
 // they agree, the first camera (sub-pixel, from the guided refinement) stays.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -63,6 +64,9 @@ struct OutlineRefinement {
   double move_px = 0;      // median move of those pairs, first -> refitted camera
 };
 
+// A view's edges by orientation, for refining several cameras of one view.
+struct OutlineEdgeMaps;
+
 // The DSM's outline points, and the refinement of cameras against them.
 class OutlineRefiner {
  public:
@@ -75,9 +79,29 @@ class OutlineRefiner {
   OutlineRefinement Refine(const cv::Mat& view, const cv::Matx33d& K, const NadirLifter& lifter,
                            ViewPose* pose) const;
 
+  // The edge maps of `view` (8-bit grey), built once for Fit.
+  std::shared_ptr<const OutlineEdgeMaps> EdgeMaps(const cv::Mat& view) const;
+
+  // A rough camera (a fusion hypothesis, fusion.h) fitted to the outlines
+  // over the pairing radii `radii` (view px, run options.passes times):
+  // the fitted camera always replaces `pose` when enough outline points
+  // paired in every round (replaced), whatever it moved.
+  OutlineRefinement Fit(const OutlineEdgeMaps& maps, const cv::Matx33d& K, const NadirLifter& lifter,
+                        const std::vector<double>& radii, ViewPose* pose) const;
+
+  // How well `camera` puts the outlines on the view's edges, cheaply (no
+  // occlusion test): the share of the outline points it projects into the
+  // view that have an edge of their orientation within radius_px; *inside
+  // (optional): how many it projects into the view.
+  double Score(const OutlineEdgeMaps& maps, const cv::Matx34d& camera, double radius_px, int* inside = nullptr) const;
+
   std::size_t points() const { return world_.size(); }
 
  private:
+  OutlineRefinement Run(const OutlineEdgeMaps& maps, const cv::Matx33d& K, const NadirLifter& lifter,
+                        const std::vector<double>& radii, bool always, ViewPose* pose, const cv::Mat* view_image,
+                        std::shared_ptr<const OutlineEdgeMaps>* built) const;
+
   OutlineRefineOptions options_;
   std::vector<cv::Point3d> world_;  // outline points (high side of the step)
   std::vector<cv::Vec2d> normal_;   // horizontal direction of rising height (east, north)

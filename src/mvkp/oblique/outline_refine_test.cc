@@ -92,6 +92,29 @@ TEST(OutlineRefine, KeepsTheTrueCamera) {
   EXPECT_EQ(cv::norm(cv::Mat(p.camera), cv::Mat(first)), 0.0);
 }
 
+// Fit: a rough camera (as a fusion hypothesis gives) is pulled over wide
+// radii to within a few pixels of the truth, well inside the guided
+// refinement's search (12 px), which finishes it; Score ranks the true
+// camera above a displaced one.
+TEST(OutlineRefine, FitsARoughCameraAndScoresTheTruthHigher) {
+  const Scene s = MakeScene("suburb", 45, 0.25, 8);
+  const double res = s.city.options.res_m;
+  const NadirLifter lift(s.city.depth, res, s.city.photo_to_depth, s.city.lean * (1.0 / res));
+  const OutlineRefiner r(s.city.depth, res);
+  const auto maps = r.EdgeMaps(s.grey);
+  ViewPose truth = Displaced(s.view, {0, 0, 0}), rough = Displaced(s.view, {2.5, -2.0, 0});
+  int inside = 0;
+  const double st = r.Score(*maps, truth.camera, 3, &inside), sr = r.Score(*maps, rough.camera, 3);
+  EXPECT_GT(inside, 500);
+  EXPECT_GT(st, sr + 0.1) << st << " vs " << sr;
+  const double before = CheckPointError(rough.camera, s.view);
+  ASSERT_GT(before, 8.0);
+  const OutlineRefinement o = r.Fit(*maps, s.view.K, lift, {24, 16, 10, 6, 4, 3, 2}, &rough);
+  EXPECT_TRUE(o.replaced);
+  EXPECT_LT(CheckPointError(rough.camera, s.view), 4.0) << "from " << before;  // measured 2.5
+  EXPECT_THROW(r.Fit(*maps, s.view.K, lift, {}, &rough), Error);
+}
+
 // Flat ground has no outlines: nothing to refine against, nothing changed.
 TEST(OutlineRefine, NoOutlinesNoChange) {
   const Scene s = MakeScene("suburb", 45, 0.25, 8);
