@@ -21,8 +21,9 @@ Methods: sift-h, orb-h (OpenCV, ratio test + RANSAC homography), sift-pnp,
 mvkp-h (`mvkp pair NADIR OBLIQUE --json`, its homography), mvkp-pnp (its
 verified correspondences lifted and solved by PnP here), mvkp-view (the
 product: `mvkp register-all DEPTH NADIR VIEW... --stage1 STAGE1 --json`, the
-same per view as `mvkp register-view`; stage 1 as --stage1 says). Its time
-per view is the view's own plus its share of the nadir photo's training.
+same per view as `mvkp register-view`; stage 1 as --stage1 says), fusion-view
+and auto-view (the same with --method fusion / auto). Their time per view is
+the view's own plus its share of the nadir photo's training.
 
     scripts/oblique_eval.py --mvkp build/mvkp --out out/oblique --style dense --seed 1 --n 4 --views 4
     scripts/oblique_eval.py --aggregate out/oblique*/summary.json   # one table over several runs
@@ -40,6 +41,7 @@ import cv2
 import numpy as np
 
 TILT_BINS = [(30, 45), (45, 60)]
+VIEW_METHODS = {"mvkp-view": "mvkp", "fusion-view": "fusion", "auto-view": "auto"}  # register-all --method
 
 
 def apply_h(H, pts):
@@ -192,10 +194,10 @@ def main():
     ap.add_argument("--views", type=int, default=4, help="oblique views per city")
     ap.add_argument("--methods", default="sift-h,orb-h,sift-pnp,mvkp-h,mvkp-pnp,mvkp-view")
     ap.add_argument("--stage1", choices=["truth", "mvkp"], default="truth",
-                    help="stage 1 for mvkp-view: the city's truth, or mvkp register's answer (views of cities it "
+                    help="stage 1 for mvkp-, fusion- and auto-view: the city's truth, or mvkp register's answer (views of cities it "
                          "does not register get none)")
     ap.add_argument("--reuse", action="store_true", help="score views already in --out")
-    ap.add_argument("--view-args", default="", help="more arguments for mvkp register-all (mvkp-view)")
+    ap.add_argument("--view-args", default="", help="more arguments for mvkp register-all (mvkp-, fusion-, auto-view)")
     ap.add_argument("--tag", default="", help="summary file name: summary<tag>.json")
     a = ap.parse_args()
     methods = [m.strip() for m in a.methods.split(",") if m.strip()]
@@ -210,7 +212,8 @@ def main():
         nadir_path = os.path.join(cdir, "photo.png")
         nadir = cv2.imread(nadir_path, cv2.IMREAD_GRAYSCALE)
         stage1 = os.path.join(cdir, "stage1_%s.json" % a.stage1)
-        if "mvkp-view" in methods and not os.path.exists(stage1):
+        view_methods = [m for m in methods if m in VIEW_METHODS]
+        if view_methods and not os.path.exists(stage1):
             if a.stage1 == "truth":
                 t = city.truth
                 json.dump({"homography": t["photo_to_depth"], "lean_depth_px_per_m": city.lean_px.tolist(),
@@ -221,13 +224,13 @@ def main():
                                    capture_output=True, text=True)
                 open(stage1, "w").write(r.stdout)
         view_jsons = sorted(f for f in os.listdir(cdir) if f.startswith("oblique_") and f.endswith(".json"))
-        all_views = {}  # view image -> register-all's answer for it, and its share of the training
-        if "mvkp-view" in methods:
+        all_views = {}  # (method, view image) -> register-all's answer for it, and its share of the training
+        for vm in view_methods:
             images = [os.path.join(cdir, json.load(open(os.path.join(cdir, f)))["image"]) for f in view_jsons]
             t0 = time.perf_counter()
             r = subprocess.run([a.mvkp, "register-all", os.path.join(cdir, "depth.tif"), nadir_path] + images +
-                               ["--stage1", stage1, "--json", "--res", str(city.res)] + a.view_args.split(),
-                               capture_output=True, text=True)
+                               ["--stage1", stage1, "--json", "--res", str(city.res), "--method", VIEW_METHODS[vm]] +
+                               a.view_args.split(), capture_output=True, text=True)
             wall_ms = (time.perf_counter() - t0) * 1000
             try:
                 j = json.loads(r.stdout)
@@ -236,9 +239,9 @@ def main():
             if j:
                 for v in j["views"]:
                     v["train_share_ms"] = j["time_ms"]["train"] / max(1, len(j["views"]))
-                    all_views[os.path.abspath(v["view"])] = v
-                print(json.dumps({"city": cd, "train_ms": round(j["time_ms"]["train"]), "wall_ms": round(wall_ms)}),
-                      flush=True)
+                    all_views[(vm, os.path.abspath(v["view"]))] = v
+                print(json.dumps({"city": cd, "method": vm, "train_ms": round(j["time_ms"]["train"]),
+                                  "wall_ms": round(wall_ms)}), flush=True)
         for vj in view_jsons:
             v = json.load(open(os.path.join(cdir, vj)))
             opath = os.path.join(cdir, v["image"])
@@ -285,15 +288,15 @@ def main():
                     else:
                         P = pnp(city, K, pa, pb)
                         err = None if P is None else float(np.linalg.norm(project(P, Xw) - opx, axis=1).mean())
-                elif m == "mvkp-view":
-                    j = all_views.get(os.path.abspath(opath), {})
+                elif m in VIEW_METHODS:
+                    j = all_views.get((m, os.path.abspath(opath)), {})
                     if j.get("camera"):
                         err = float(np.linalg.norm(project(np.array(j["camera"]), Xw) - opx, axis=1).mean())
                     # the view's own time plus its share of the nadir photo's training
                     row[m] = {"error_px": err, "view_ms": j.get("time_ms", {}).get("total", 0),
                               **{k: j.get(k) for k in ("inliers", "lifted", "inlier_tiles", "inlier_cells",
                                                        "inlier_height_span_m", "nadir_gsd_m", "rms_px",
-                                                       "scale", "refinement")},
+                                                       "scale", "refinement", "method", "fusion")},
                               "ms": j.get("time_ms", {}).get("total", 0) + j.get("train_share_ms", 0)}
                     continue
                 row[m] = {"error_px": err, "ms": (time.perf_counter() - t0) * 1000}

@@ -253,6 +253,46 @@ PYEOF
 else
   fail "register-all exits 0 ($(first_err))"
 fi
+# --method fusion (thesis 7.3.2) and auto: answers right or none, none for
+# other ground; auto answers at least what mvkp answered (it runs fusion only
+# for the views mvkp finds no camera for).
+for method in fusion auto; do
+  if "$MVKP" register-all "$RV/depth.tif" "$RV/photo.png" "$RV"/oblique_0{0,1,2,3}.png "$OTHER" \
+      --stage1 "$RV/stage1.json" --json --method $method > "$T/rall-$method.json" 2> "$T/err"; then
+    check "register-all --method $method: cameras within 5 px or none, none for other ground" "$PY" - \
+        "$T/rall-$method.json" "$RV" "$method" "$T/rall.json" <<'PYEOF'
+import json, sys
+import numpy as np
+j = json.load(open(sys.argv[1]))
+method = sys.argv[3]
+base = json.load(open(sys.argv[4]))["views"]
+assert len(j["views"]) == 5
+for k, r in enumerate(j["views"]):
+    assert r["requested_method"] == method, r
+    if method == "fusion" or not base[k]["ok"]:
+        assert r["fusion"]["ms"] > 0 and "nadir_regions" in r["fusion"], r.get("fusion")
+    if not r["ok"]:
+        assert r["camera"] is None and r["reason"].startswith("no registration"), r["reason"]
+        assert k == 4 or method == "fusion" or not base[k]["ok"], "auto lost view %d" % k
+        continue
+    assert k < 4, "a camera for other ground: " + r["reason"]
+    assert r["method"] == ("fusion-pnp" if method == "fusion" or not base[k]["ok"] else "mvkp-pnp"), r["method"]
+    v = json.load(open("%s/oblique_%02d.json" % (sys.argv[2], k)))
+    X = np.array([c["world_m"] + [1] for c in v["check_points"]]) @ np.array(r["camera"]).T
+    e = np.linalg.norm(X[:, :2] / X[:, 2:] - np.array([c["oblique_px"] for c in v["check_points"]]), axis=1).mean()
+    assert e <= 5, "view %d: camera %.1f px off (%s)" % (k, e, r["method"])
+print(method, "answered", sum(r["ok"] for r in j["views"]))
+PYEOF
+  else
+    fail "register-all --method $method exits 0 ($(first_err))"
+  fi
+done
+run "$MVKP" register-view "$RV/depth.tif" "$RV/photo.png" "$RV/stage1.json" "$RV/oblique_00.png" --method sift
+if ((RC == 2)) && grep -qF -- "--method" "$T/err"; then
+  ok "register-view: --method sift is a usage error"
+else
+  fail "register-view --method sift: exit $RC: $(first_err)"
+fi
 # register-all runs stage 1 itself (as mvkp register) and saves it
 if "$MVKP" register-all "$RV/depth.tif" "$RV/photo.png" "$RV/oblique_01.png" --res 0.5 --save-stage1 "$T/s1.json" \
     --json > "$T/rall1.json" 2> "$T/err"; then

@@ -61,6 +61,7 @@ Json Mat(const auto& m, int rows, int cols) {
 
 // What both commands share.
 struct Stage2Args {
+  std::string method = "mvkp";
   double focal = 0, hfov = 50, res_m = 0;
   bool json = false;
   ViewRegistrarOptions reg;
@@ -121,6 +122,12 @@ Stage1 ParseStage1(const Json& s1, const std::string& name, const geo::DepthRast
   return r;
 }
 
+// Fusion's vegetation map needs colour (decoded besides the grey image that
+// MVKP and the refinements see, so that every method sees the same grey).
+cv::Mat LoadColour(const std::string& path, ViewMethod m) {
+  return m == ViewMethod::kMvkp ? cv::Mat() : LoadImageColor(path);
+}
+
 Json ReadJsonFile(const std::string& path) {
   std::ifstream f(path);
   Require(bool(f), ErrorCode::kIo, path + ": cannot read");
@@ -137,8 +144,9 @@ Json ReadJsonFile(const std::string& path) {
 // everything a view's registration needs.
 class Stage2 {
  public:
-  Stage2(const geo::DepthRaster& d, const cv::Mat& nadir, const Stage1& s1, const Stage2Args& a)
-      : d_(d), s1_(s1), a_(a), reg_(d.z, s1.res_m, nadir, s1.nadir_to_depth, s1.lean, a.reg) {}
+  Stage2(const geo::DepthRaster& d, const cv::Mat& nadir, const cv::Mat& nadir_colour, const Stage1& s1,
+         const Stage2Args& a)
+      : d_(d), s1_(s1), a_(a), reg_(d.z, s1.res_m, nadir, s1.nadir_to_depth, s1.lean, a.reg, nadir_colour) {}
 
   double train_ms() const { return reg_.train_ms(); }
 
@@ -151,10 +159,10 @@ class Stage2 {
   Run Compute(const std::string& view_path) const {
     Timer total;
     Run run;
-    const cv::Mat view = LoadImageGray(view_path);
+    const cv::Mat view = LoadImageGray(view_path), colour = LoadColour(view_path, a_.reg.method);
     run.K = ViewIntrinsics(view.size(), a_.hfov, a_.focal);
     run.read_ms = total.ElapsedMs();
-    run.r = reg_.Register(view, run.K);
+    run.r = reg_.Register(view, run.K, colour);
     run.nadir_to_depth = reg_.nadir_to_depth();
     run.total_ms = total.ElapsedMs();
     return run;
@@ -177,7 +185,8 @@ class Stage2 {
     const ViewPose& p = r.pose;
     const double res = s1_.res_m, z0 = reg_.lifter().ground_height();
     Json out;
-    out["method"] = "mvkp-pnp";
+    out["method"] = r.method == ViewMethod::kFusion ? "fusion-pnp" : "mvkp-pnp";  // what answered
+    out["requested_method"] = ViewMethodName(a_.reg.method);
     out["view"] = view_path;
     out["ok"] = p.ok;
     out["reason"] = p.ok ? p.reason : "no registration: " + p.reason;
@@ -218,6 +227,20 @@ class Stage2 {
     out["outline_refinement"] = {{"ran", ol.ran},     {"replaced", ol.replaced}, {"visible", ol.visible},
                                  {"pairs", ol.pairs}, {"first_pairs", ol.first_pairs},
                                  {"move_px", ol.move_px}};
+    if (r.fusion_ran) {
+      out["fusion"] = {{"view_regions", r.fusion_rois},
+                       {"view_lists", r.fusion_lists},
+                       {"nadir_regions", reg_.nadir_fusion().rois},
+                       {"nadir_lists", reg_.nadir_fusion().oels},
+                       {"region_matches", r.fusion_match.region_matches},
+                       {"list_matches", r.fusion_match.list_matches},
+                       {"agreeing_features", r.fusion_features},
+                       {"tilt_hypothesis", r.fusion_tilt},
+                       {"hypotheses_tried", r.fusion_tried},
+                       {"confirmed_by", r.refinement.inliers},
+                       {"mvkp_reason", r.mvkp_reason},
+                       {"ms", r.fusion_ms}};
+    }
     out["time_ms"] = {{"read", read_ms},
                       {"match", r.match_ms},
                       {"pose", r.pose_ms},
@@ -260,16 +283,21 @@ class Stage2 {
   mutable std::optional<std::vector<BuildingRegion>> outlines_;  // the depth's building regions, for Draw
 };
 
-void CheckStage2(const Stage2Args& a) { a.reg.Check(); }
+void CheckStage2(Stage2Args& a) {
+  a.reg.method = a.method == "fusion" ? ViewMethod::kFusion : a.method == "auto" ? ViewMethod::kAuto : ViewMethod::kMvkp;
+  Require(a.method == ViewMethodName(a.reg.method), ErrorCode::kInvalidArgument,
+          "--method must be mvkp, fusion or auto");
+  a.reg.Check();
+}
 
 int RunRegisterView(RegisterViewArgs& a) {
   CheckStage2(a);
   const Json s1j = ReadJsonFile(a.stage1);
   const geo::DepthRaster d = geo::ReadDepthRaster(a.depth, geo::DepthReadOptions{});
-  const cv::Mat nadir = LoadImageGray(a.nadir);
+  const cv::Mat nadir = LoadImageGray(a.nadir), nadir_colour = LoadColour(a.nadir, a.reg.method);
   LoadImageGray(a.oblique);  // a bad view is an error before the training
   const Stage1 s1 = ParseStage1(s1j, a.stage1, d, a.depth, nadir, a.nadir, a.res_m);
-  const Stage2 stage2(d, nadir, s1, a);
+  const Stage2 stage2(d, nadir, nadir_colour, s1, a);
   Json out = stage2.Register(a.oblique, a.draw);
   out["time_ms"]["train"] = stage2.train_ms();
   if (a.json) {
@@ -286,7 +314,7 @@ int RunRegisterAll(RegisterAllArgs& a) {
   CheckStage2(a);
   Timer total;
   const geo::DepthRaster d = geo::ReadDepthRaster(a.depth, geo::DepthReadOptions{});
-  const cv::Mat nadir = LoadImageGray(a.nadir);
+  const cv::Mat nadir = LoadImageGray(a.nadir), nadir_colour = LoadColour(a.nadir, a.reg.method);
   for (const auto& v : a.views) LoadImageGray(v);  // bad views are errors before the work
   if (!a.draw_dir.empty()) {
     std::error_code ec;
@@ -318,7 +346,7 @@ int RunRegisterAll(RegisterAllArgs& a) {
   } else {
     const Stage1 s1 = ParseStage1(s1j, a.stage1_in.empty() ? "stage 1" : a.stage1_in, d, a.depth, nadir, a.nadir,
                                   a.res_m);
-    Stage2 stage2(d, nadir, s1, a);
+    Stage2 stage2(d, nadir, nadir_colour, s1, a);
     train_ms = stage2.train_ms();
     std::vector<Stage2::Run> runs;
     for (const auto& v : a.views) runs.push_back(stage2.Compute(v));
@@ -371,6 +399,11 @@ int RunRegisterAll(RegisterAllArgs& a) {
 }
 
 void AddStage2Options(CLI::App* c, Stage2Args* a) {
+  c->add_option("--method", a->method,
+                "mvkp: MVKP trained on the nadir photo's tiles (thesis 7.3.1); fusion: regions and edgelet lists "
+                "described by shape contexts (7.3.2); auto: mvkp, then fusion for a view mvkp finds no camera for")
+      ->check(CLI::IsMember({"mvkp", "fusion", "auto"}))
+      ->capture_default_str();
   c->add_option("--focal", a->focal, "focal length of the oblique camera, pixels (default: from --hfov)")
       ->check(CLI::Range(1.0, 1e6));
   c->add_option("--hfov", a->hfov, "horizontal field of view of the oblique camera, degrees")

@@ -361,8 +361,13 @@ void BindAerial(py::module_& m) {
       "nadir photo (trains MVKP on its tiles), then register() per view.")
       .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
                        std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
-                       int min_inliers, double max_height_step_m, bool refine, bool outline_refine) {
+                       int min_inliers, double max_height_step_m, bool refine, bool outline_refine,
+                       const std::string& method) {
              ViewRegistrarOptions o;
+             if (method == "mvkp") o.method = ViewMethod::kMvkp;
+             else if (method == "fusion") o.method = ViewMethod::kFusion;
+             else if (method == "auto") o.method = ViewMethod::kAuto;
+             else throw py::value_error("method must be 'mvkp', 'fusion' or 'auto'");
              o.refine = refine;
              o.outline_refine = outline_refine;
              o.tiles.tile_px = tile_px;
@@ -372,7 +377,8 @@ void BindAerial(py::module_& m) {
              o.pose.min_inliers = min_inliers;
              o.Check();
              ImageArg z = ToFloatImage(depth, "depth");
-             ImageArg g = ToImage(nadir, "nadir", ImageKind::kGray);
+             // fusion's vegetation map uses colour; MVKP converts to grey itself
+             ImageArg g = ToImage(nadir, "nadir", ImageKind::kGrayOrBgr);
              const cv::Matx33d H = ArrayToMatx33(nadir_to_depth, "nadir_to_depth");
              if (!(res_m > 0)) throw py::value_error("res_m must be > 0 (metres per depth cell)");
              py::gil_scoped_release release;
@@ -383,17 +389,18 @@ void BindAerial(py::module_& m) {
            py::arg("lean") = std::pair<double, double>(0.0, 0.0), py::arg("tile_px") = 320,
            py::arg("nadir_gsd_m") = 0.4, py::arg("scales") = std::vector<double>{1.0, 0.5, 0.3},
            py::arg("min_inliers") = 15, py::arg("max_height_step_m") = 2.0, py::arg("refine") = true,
-           py::arg("outline_refine") = true,
+           py::arg("outline_refine") = true, py::arg("method") = "mvkp",
            "depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); "
            "nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; "
            "lean: stage 1's lean_depth_px_per_m; max_height_step_m: pairs within a tile pixel of a larger height "
            "step of the DSM are not lifted (0: keep all); refine: refine the camera against the whole nadir photo "
            "(correlation at the corners it predicts); outline_refine: then refit it to the DSM's roof outlines seen as "
-           "edges of the view, which undoes a stage-1 error.")
+           "edges of the view, which undoes a stage-1 error; method: 'mvkp' (MVKP tiles, thesis 7.3.1), 'fusion' "
+           "(regions and edgelet lists, 7.3.2) or 'auto' (mvkp, then fusion for a view mvkp finds no camera for).")
       .def(
           "register",
           [](const ViewRegistrar& reg, py::handle view, double hfov, double focal) {
-            ImageArg g = ToImage(view, "view", ImageKind::kGray);
+            ImageArg g = ToImage(view, "view", ImageKind::kGrayOrBgr);
             const cv::Matx33d K = ViewIntrinsics(g.mat.size(), hfov, focal);
             ViewRegistration r;
             {
@@ -448,6 +455,21 @@ void BindAerial(py::module_& m) {
             ol["first_pairs"] = r.outline.first_pairs;
             ol["move_px"] = r.outline.move_px;
             out["outline_refinement"] = ol;
+            out["method"] = ViewMethodName(r.method);  // the method that answered (or last tried)
+            if (r.fusion_ran) {
+              py::dict f;
+              f["view_regions"] = r.fusion_rois;
+              f["view_lists"] = r.fusion_lists;
+              f["region_matches"] = r.fusion_match.region_matches;
+              f["list_matches"] = r.fusion_match.list_matches;
+              f["agreeing_features"] = r.fusion_features;
+              f["tilt_hypothesis"] = r.fusion_tilt;
+              f["hypotheses_tried"] = r.fusion_tried;
+              f["ms"] = r.fusion_ms;
+              out["fusion"] = f;
+            } else {
+              out["fusion"] = py::none();
+            }
             py::dict t;
             t["match"] = r.match_ms;
             t["pose"] = r.pose_ms;
@@ -461,7 +483,9 @@ void BindAerial(py::module_& m) {
           "(or focal length focal px), principal point at the centre. A dict: ok, reason, camera ((3, 4): world "
           "metres east-north-up -> view px, or None), K, R, centre_m, matches ((n, 4) nadir x, y, view x, y), "
           "inlier ((n,) bool), inliers, rms_px, scale, refinement (refined, tried, found, inliers, rms_px, "
-          "shift_px), outline_refinement (ran, replaced, visible, pairs, first_pairs, move_px), time_ms. "
+          "shift_px), outline_refinement (ran, replaced, visible, pairs, first_pairs, move_px), method (the one "
+          "that answered: 'mvkp' or 'fusion'), fusion (None when it did not run: view_regions, view_lists, "
+          "region_matches, list_matches, agreeing_features, tilt_hypothesis, hypotheses_tried, ms), time_ms. "
           "'No registration' is ok False, not an error.")
       .def(
           "restage",

@@ -149,3 +149,22 @@ def test_view_registrar_equals_cli(tmp_path):
         mvkp.ViewRegistrar(depth, nadir, np.eye(2), res_m=0.5)
     with pytest.raises(mvkp.InvalidArgumentError):
         mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0.5, tile_px=10)
+    with pytest.raises(ValueError):
+        mvkp.ViewRegistrar(depth, nadir, np.eye(3), res_m=0.5, method="sift")
+    # method 2, feature fusion: the same answers as register-all --method fusion, right or none
+    fus = mvkp.ViewRegistrar(depth, nadir, np.array(t["photo_to_depth"]), res_m=t["res_m"], lean=tuple(lean),
+                             method="fusion")
+    assert fus.tiles == 0  # no MVKP training
+    out = subprocess.run([cli, "register-all", str(d / "depth.tif"), str(d / "photo.png")] + views +
+                         ["--stage1", str(d / "stage1.json"), "--res", str(t["res_m"]), "--json", "--method", "fusion",
+                          "--no-correct-stage1"], capture_output=True, text=True, timeout=240, check=True)
+    for k, (path, cv_) in enumerate(zip(views, json.loads(out.stdout)["views"])):
+        r = fus.register(mvkp.read_optical(path), hfov=50.0)
+        assert r["method"] == "fusion" and r["fusion"] is not None and cv_["requested_method"] == "fusion"
+        assert r["ok"] == cv_["ok"], (r["reason"], cv_["reason"])
+        if r["ok"]:
+            np.testing.assert_allclose(r["camera"], np.array(cv_["camera"]), rtol=1e-9, atol=1e-6)
+            v = json.load(open(d / ("oblique_%02d.json" % k)))
+            X = np.array([c["world_m"] + [1] for c in v["check_points"]]) @ r["camera"].T
+            err = np.linalg.norm(X[:, :2] / X[:, 2:] - np.array([c["oblique_px"] for c in v["check_points"]]), axis=1)
+            assert err.mean() <= 5, err.mean()

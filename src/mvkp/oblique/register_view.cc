@@ -4,14 +4,35 @@
 #include <cmath>
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "mvkp/core/error.h"
 #include "mvkp/core/timer.h"
 
 namespace mvkp {
 
+const char* ViewMethodName(ViewMethod m) {
+  switch (m) {
+    case ViewMethod::kMvkp: return "mvkp";
+    case ViewMethod::kFusion: return "fusion";
+    case ViewMethod::kAuto: return "auto";
+  }
+  return "?";
+}
+
 void ViewRegistrarOptions::Check() const {
   tiles.Check();
+  fusion.Check();
+  rectify.Check();
+  for (double t : fusion_tilts)
+    Require(t >= 0 && t < 89, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: fusion_tilts must be in [0, 89)");
+  Require(fusion_min_confirmed >= 6 && fusion_lift_m >= 0 && fusion_lift_m <= 20 && fusion_hypotheses >= 0 &&
+              fusion_hypotheses <= 1000 && fusion_min_features >= 1 && !fusion_radii.empty(),
+          ErrorCode::kInvalidArgument,
+          "ViewRegistrarOptions: fusion_min_confirmed >= 6, fusion_lift_m in [0, 20], fusion_hypotheses in "
+          "[0, 1000], fusion_min_features >= 1, fusion_radii not empty");
+  for (double r : fusion_radii)
+    Require(r >= 0.5 && r <= 256, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: fusion_radii in [0.5, 256]");
   pose.Check();
   guided.Check();
   outline.Check();
@@ -46,6 +67,24 @@ cv::Matx33d ViewIntrinsics(cv::Size size, double hfov_deg, double focal_px) {
 
 namespace {
 
+cv::Mat Gray(const cv::Mat& image) {
+  Require(!image.empty() && image.depth() == CV_8U && (image.channels() == 1 || image.channels() == 3),
+          ErrorCode::kInvalidArgument, "ViewRegistrar: an 8-bit grey or BGR image is required");
+  if (image.channels() == 1) return image;
+  cv::Mat g;
+  cv::cvtColor(image, g, cv::COLOR_BGR2GRAY);
+  return g;
+}
+
+// The colour image for fusion: `color` when given (it must be BGR of the
+// same size as `image`), else `image` itself.
+const cv::Mat& Colour(const cv::Mat& color, const cv::Mat& image) {
+  if (color.empty()) return image;
+  Require(color.type() == CV_8UC3 && color.size() == image.size(), ErrorCode::kInvalidArgument,
+          "ViewRegistrar: the colour image must be 8-bit BGR of the grey image's size");
+  return color;
+}
+
 NadirTilesOptions TileOptions(const ViewRegistrarOptions& o, double gsd) {
   o.Check();
   NadirTilesOptions t = o.tiles;
@@ -56,17 +95,25 @@ NadirTilesOptions TileOptions(const ViewRegistrarOptions& o, double gsd) {
 }  // namespace
 
 ViewRegistrar::ViewRegistrar(const cv::Mat1f& depth, double res_m, const cv::Mat& nadir,
-                             const cv::Matx33d& nadir_to_depth, cv::Point2d lean, const ViewRegistrarOptions& options)
+                             const cv::Matx33d& nadir_to_depth, cv::Point2d lean, const ViewRegistrarOptions& options,
+                             const cv::Mat& nadir_color)
     : options_(options),
       depth_(depth.clone()),
-      nadir_(nadir.clone()),
+      nadir_(Gray(nadir).clone()),
       res_m_(res_m),
       nadir_to_depth_(nadir_to_depth),
       nadir_gsd_m_(NadirGsd(nadir.size(), nadir_to_depth, res_m)),
-      tiles_(nadir, TileOptions(options, nadir_gsd_m_)),
       lifter_(depth, res_m, nadir_to_depth, lean),
-      refiner_(nadir, lifter_, options.guided),
-      outline_(depth, res_m, options.outline) {}
+      refiner_(nadir_, lifter_, options.guided),
+      outline_(depth, res_m, options.outline) {
+  options.Check();
+  if (options.method != ViewMethod::kFusion) tiles_.emplace(nadir_, TileOptions(options, nadir_gsd_m_));
+  if (options.method != ViewMethod::kMvkp) {
+    Timer tm;
+    nadir_fusion_ = ExtractFusionFeatures(Colour(nadir_color, nadir), options.fusion);
+    fusion_train_ms_ = tm.ElapsedMs();
+  }
+}
 
 void ViewRegistrar::Restage(const cv::Matx33d& nadir_to_depth, cv::Point2d lean) {
   NadirLifter lifter(depth_, res_m_, nadir_to_depth, lean);  // checks the arguments first
@@ -123,14 +170,12 @@ bool Stage1Correction(const std::vector<ViewRegistration>& views, double res_m, 
   return true;
 }
 
-ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d& K) const {
-  Require(!view.empty() && view.type() == CV_8UC1, ErrorCode::kInvalidArgument,
-          "ViewRegistrar: an 8-bit grey view is required");
-  ViewRegistration r;
+void ViewRegistrar::MatchTiles(const cv::Mat& gray, const cv::Matx33d& K, ViewRegistration* out) const {
+  ViewRegistration& r = *out;
   Timer tm;
   for (double sc : options_.scales) {
     tm.Restart();
-    std::vector<NadirMatch> found = tiles_.Match(view, sc);
+    std::vector<NadirMatch> found = tiles_->Match(gray, sc);
     r.match_ms += tm.ElapsedMs();
     tm.Restart();
     std::vector<NadirMatch> kept;
@@ -146,22 +191,203 @@ ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d&
         continue;
       if (lifter_.Lift(cv::Point2d(c.nadir), &w)) X.push_back(w), x.emplace_back(c.view), kept.push_back(c);
     }
-    ViewPose p = EstimateViewPose(X, x, K, options_.pose, view.size());
+    ViewPose p = EstimateViewPose(X, x, K, options_.pose, gray.size());
     r.pose_ms += tm.ElapsedMs();
     if (r.scale == 0 || p.ok || (!r.pose.ok && p.inliers > r.pose.inliers))
       r.matches = std::move(kept), r.world = std::move(X), r.pose = std::move(p), r.scale = sc;
     if (r.pose.ok) break;
   }
-  if (r.pose.ok && options_.refine) {
-    tm.Restart();
+}
+
+bool ViewRegistrar::LiftTop(cv::Point2d p, cv::Point3d* world) const {
+  const double rad = nadir_gsd_m_ > 0 ? options_.fusion_lift_m / nadir_gsd_m_ : 0;
+  bool any = false;
+  for (int k = -1; k < 8; ++k) {
+    const double a = k * CV_PI / 4;
+    const cv::Point2d q = k < 0 ? p : p + cv::Point2d(rad * std::cos(a), rad * std::sin(a));
+    cv::Point3d w;
+    if (!lifter_.Lift(q, &w)) continue;
+    if (!any || w.z > world->z + 1e-9) *world = w;
+    any = true;
+    if (rad <= 0) break;
+  }
+  return any;
+}
+
+void ViewRegistrar::MatchFeatures(const cv::Mat& view, const cv::Mat& gray, const cv::Matx33d& K,
+                                  ViewRegistration* out) const {
+  ViewRegistration r;
+  r.method = ViewMethod::kFusion;
+  r.fusion_ran = true;
+  r.scale = 1;
+  Timer tm;
+  // each tilt hypothesis: the view rectified, its features, their pairs with
+  // the nadir photo's lifted to 3-D, and the cameras they propose
+  struct Trial {
+    double tilt = -1;
+    std::vector<cv::Point3d> X;
     std::vector<cv::Point2d> px;
-    for (const auto& m : r.matches) px.emplace_back(m.view);
-    r.refinement = refiner_.Refine(view, K, lifter_, r.world, px, &r.pose);
-    r.refine_ms = tm.ElapsedMs();
+    std::vector<NadirMatch> lifted;
+    FusionMatchStats stats;
+    int rois = 0, lists = 0;
+    std::vector<CameraHypothesis> hyps;
+  };
+  std::vector<Trial> trials;
+  std::vector<double> tilts = options_.fusion_tilts;
+  if (tilts.empty()) tilts.push_back(-1);  // the view as it is
+  for (double tilt : tilts) {
+    Trial t;
+    t.tilt = tilt;
+    cv::Matx33d back = cv::Matx33d::eye();  // rectified px -> view px
+    FusionFeatures vf;
+    if (tilt >= 0) {
+      const Rectification rc = RectifyForTilt(view.size(), K, tilt, options_.rectify);
+      back = rc.H.inv();
+      vf = ExtractFusionFeatures(Rectify(view, rc), options_.fusion);
+    } else {
+      vf = ExtractFusionFeatures(view, options_.fusion);
+    }
+    t.rois = vf.rois, t.lists = vf.oels;
+    std::vector<int> pair_of;
+    for (NadirMatch c : MatchFusion(nadir_fusion_, vf, options_.fusion, &t.stats)) {
+      const cv::Vec3d q = back * cv::Vec3d(c.view.x, c.view.y, 1);
+      if (!(std::abs(q[2]) > 1e-12)) continue;
+      c.view = cv::Point2f(float(q[0] / q[2]), float(q[1] / q[2]));
+      if (!(c.view.x >= 0 && c.view.y >= 0 && c.view.x <= view.cols - 1 && c.view.y <= view.rows - 1)) continue;
+      cv::Point3d w;
+      if (LiftTop(cv::Point2d(c.nadir), &w))
+        t.X.push_back(w), t.px.emplace_back(c.view), t.lifted.push_back(c), pair_of.push_back(c.tile);
+    }
+    t.hyps = FeatureHypotheses(t.X, t.px, pair_of, t.stats.view_source, K, options_.fusion_seeds,
+                               options_.fusion_consensus);
+    trials.push_back(std::move(t));
+  }
+  // the hypotheses of all tilts, best first: by how well they put the
+  // LiDAR's roof outlines on the view's edges (a chance camera puts them
+  // on the edge density; a feature pair's own camera is right near it),
+  // then by their agreeing features
+  const std::shared_ptr<const OutlineEdgeMaps> maps = outline_.EdgeMaps(gray);
+  struct Ranked {
+    int trial, hyp;
+    double score;
+  };
+  std::vector<Ranked> order;
+  for (std::size_t i = 0; i < trials.size(); ++i)
+    for (std::size_t k = 0; k < trials[i].hyps.size(); ++k) {
+      const CameraHypothesis& h = trials[i].hyps[k];
+      if (h.features < options_.fusion_min_features) continue;
+      int inside = 0;
+      const double sc = outline_.Score(*maps, CameraMatrix(K, h.R, h.t), options_.fusion_score_px, &inside);
+      if (inside < options_.fusion_min_outline) continue;
+      order.push_back({int(i), int(k), sc});
+
+    }
+  auto hyp = [&](const Ranked& q) -> const CameraHypothesis& {
+    return trials[std::size_t(q.trial)].hyps[std::size_t(q.hyp)];
+  };
+  std::stable_sort(order.begin(), order.end(), [&](const Ranked& a, const Ranked& b) {
+    return a.score > b.score || (a.score == b.score && hyp(a).features > hyp(b).features);
+  });
+  r.match_ms = tm.ElapsedMs();
+  tm.Restart();
+  // Each, in turn, fitted to the LiDAR's outlines seen as edges of the view
+  // (the global context), then confirmed by the nadir photo's texture; the
+  // first confirmed camera answers.
+  int tried = 0, best_confirmed = 0, best_tried = 0;
+  const Trial* used = nullptr;
+  const CameraHypothesis* answer = nullptr;
+  for (const auto& q : order) {
+    if (tried >= options_.fusion_hypotheses) break;
+    const CameraHypothesis& h = hyp(q);
+    ++tried;
+    ViewPose p;
+    p.ok = true;
+    p.R = h.R, p.t = h.t;
+    p.camera = CameraMatrix(K, h.R, h.t);
+    p.centre_m = -(h.R.t() * h.t);
+    outline_.Fit(*maps, K, lifter_, options_.fusion_radii, &p);
+    const GuidedRefinement g = refiner_.Refine(gray, K, lifter_, {}, {}, &p);
+    if (g.refined && g.inliers > best_confirmed) best_confirmed = g.inliers, best_tried = g.tried;
+    if (g.refined && g.inliers >= options_.fusion_min_confirmed) {
+      used = &trials[std::size_t(q.trial)];
+      answer = &h;
+      r.pose = p;
+      r.refinement = g;
+      break;
+    }
+  }
+  r.pose_ms = tm.ElapsedMs();
+  int best_features = 0;
+  for (const Trial& t : trials)
+    for (const CameraHypothesis& h : t.hyps) best_features = std::max(best_features, h.features);
+  if (!answer) {
+    r.pose = {};
+    r.pose.reason = cv::format(
+        "fusion: %d camera hypotheses tried (best: %d view features agree, %d needed), none confirmed by the nadir "
+        "photo's texture (best %d of %d corners, %d needed)",
+        tried, best_features, options_.fusion_min_features, best_confirmed, best_tried,
+        options_.fusion_min_confirmed);
+  } else {
+    // the agreeing pairs, and which of them the final camera explains
+    r.fusion_tilt = used->tilt;
+    r.fusion_features = answer->features;
+    r.fusion_rois = used->rois, r.fusion_lists = used->lists;
+    r.fusion_match = used->stats;
+    double ss = 0;
+    for (std::size_t i = 0; i < used->X.size(); ++i) {
+      if (!answer->agree[i]) continue;
+      r.world.push_back(used->X[i]);
+      r.matches.push_back(used->lifted[i]);
+      const cv::Vec3d u = r.pose.camera * cv::Vec4d(used->X[i].x, used->X[i].y, used->X[i].z, 1);
+      const double e = u[2] > 0 ? std::hypot(u[0] / u[2] - used->px[i].x, u[1] / u[2] - used->px[i].y) : 1e9;
+      const bool in = e <= options_.fusion_consensus.agree_px;
+      r.pose.inlier.push_back(char(in));
+      if (in) ++r.pose.inliers, ss += e * e;
+    }
+    r.pose.matches = int(r.matches.size());
+    r.pose.rms_px = r.pose.inliers ? std::sqrt(ss / r.pose.inliers) : 0;
+    r.pose.reason = cv::format("fusion: %d view features agree (tilt hypothesis %.0f deg), confirmed by %d of %d corners "
+                               "of the nadir photo, RMS %.2f px",
+                               answer->features, used->tilt, r.refinement.inliers, r.refinement.tried,
+                               r.refinement.rms_px);
+  }
+  if (!answer && !trials.empty()) {
+    const Trial& t = trials.front();
+    r.fusion_rois = t.rois, r.fusion_lists = t.lists, r.fusion_match = t.stats;
+  }
+  r.fusion_tried = tried;
+  r.fusion_ms = r.match_ms + r.pose_ms;
+  *out = std::move(r);
+}
+
+ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d& K, const cv::Mat& view_color) const {
+  const cv::Mat gray = Gray(view);
+  ViewRegistration r;
+  Timer tm;
+  const ViewMethod m = options_.method;
+  if (m != ViewMethod::kFusion) {
+    MatchTiles(gray, K, &r);
+    if (r.pose.ok && options_.refine) {
+      tm.Restart();
+      std::vector<cv::Point2d> px;
+      for (const auto& c : r.matches) px.emplace_back(c.view);
+      r.refinement = refiner_.Refine(gray, K, lifter_, r.world, px, &r.pose);
+      r.refine_ms = tm.ElapsedMs();
+    }
+  }
+  if (m == ViewMethod::kFusion || (m == ViewMethod::kAuto && !r.pose.ok)) {
+    ViewRegistration f;
+    MatchFeatures(Colour(view_color, view), gray, K, &f);
+    if (m == ViewMethod::kAuto) {
+      f.mvkp_reason = r.pose.reason;
+      f.match_ms += r.match_ms, f.pose_ms += r.pose_ms;  // the time both took
+      if (!f.pose.ok) f.pose.reason += "; mvkp: " + r.pose.reason;
+    }
+    r = std::move(f);
   }
   if (r.pose.ok && options_.outline_refine) {
     tm.Restart();
-    r.outline = outline_.Refine(view, K, lifter_, &r.pose);
+    r.outline = outline_.Refine(gray, K, lifter_, &r.pose);
     r.outline_ms = tm.ElapsedMs();
   }
   if (r.pose.ok) {

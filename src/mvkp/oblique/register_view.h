@@ -4,18 +4,29 @@
 // register-view` / `register-all` and the Python ViewRegistrar run.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "mvkp/oblique/fusion.h"
 #include "mvkp/oblique/guided_refine.h"
 #include "mvkp/oblique/nadir_tiles.h"
 #include "mvkp/oblique/outline_refine.h"
+#include "mvkp/oblique/rectify.h"
 #include "mvkp/oblique/view_pose.h"
 
 namespace mvkp {
 
+// How a view is matched to the nadir photo: MVKP tiles (thesis §7.3.1),
+// feature fusion (§7.3.2, fusion.h), or auto: MVKP, and fusion only for a
+// view MVKP finds no camera for (MVKP is faster and, on the views both
+// register, more accurate; see docs/oblique.md).
+enum class ViewMethod { kMvkp, kFusion, kAuto };
+const char* ViewMethodName(ViewMethod m);
+
 struct ViewRegistrarOptions {
+  ViewMethod method = ViewMethod::kMvkp;
   NadirTilesOptions tiles;
   ViewPoseOptions pose;
   // The view is searched at each scale in turn (area-averaged) until a camera
@@ -43,10 +54,38 @@ struct ViewRegistrarOptions {
   // corrects a camera that a stage-1 error displaced, when `outline_refine`.
   bool outline_refine = true;
   OutlineRefineOptions outline;
+  // Feature fusion (fusion.h): its features; the view rectified to a
+  // pseudo-nadir view (rectify.h) for each of fusion_tilts (degrees off
+  // nadir; empty: the view as it is); the camera hypotheses of its feature
+  // pairs (FeatureHypotheses), the fusion_hypotheses best of all tilts
+  // with at least fusion_min_features agreeing view features tried in
+  // turn: each fitted to the LiDAR's roof outlines over fusion_radii
+  // (outline_refine.h, the global context that propagates one feature
+  // pair's camera to the whole view), then refined against the nadir
+  // photo (guided_refine.h), which must confirm it with at least
+  // fusion_min_confirmed of its corners found by correlation where the
+  // camera predicts them; the shapes alone do not tell a right camera from
+  // a chance one.
+  FusionOptions fusion;
+  std::vector<double> fusion_tilts = {35, 45, 55};
+  RectifyOptions rectify;
+  FeatureConsensusOptions fusion_consensus;
+  int fusion_seeds = 300;        // camera hypotheses per tilt (one per feature pair, best first)
+  double fusion_score_px = 6;    // ranked by OutlineRefiner::Score at this radius ...
+  int fusion_min_outline = 100;  // ... over at least this many outline points in the view
+  int fusion_hypotheses = 8;     // the best ones fitted and checked
+  int fusion_min_features = 1;
+  std::vector<double> fusion_radii = {24, 16, 10, 6, 4, 3, 2};
+  int fusion_min_confirmed = 40;
+  // A fusion point is lifted to the highest surface within this many metres
+  // of it: outlines and edgelets lie on roof edges, and the top of a step is
+  // what every view sees.
+  double fusion_lift_m = 1.0;
   void Check() const;  // throws Error(kInvalidArgument)
 };
 
 struct ViewRegistration {
+  ViewMethod method = ViewMethod::kMvkp;  // the method whose answer this is
   ViewPose pose;                     // pose.ok: a camera; else pose.reason says why not
   std::vector<NadirMatch> matches;   // the lifted pairs PnP saw (pose.inlier flags them)
   std::vector<cv::Point3d> world;    // their 3-D points
@@ -58,40 +97,64 @@ struct ViewRegistration {
   double refine_ms = 0;
   OutlineRefinement outline;         // what the outline refinement did
   double outline_ms = 0;
+  // feature fusion, when it ran (method fusion, or auto after MVKP found nothing)
+  bool fusion_ran = false;
+  int fusion_rois = 0, fusion_lists = 0;  // the view's regions and edgelet lists
+  int fusion_features = 0;                // view features agreeing on the camera
+  double fusion_tilt = -1;                // the tilt hypothesis that answered (-1: none, the view as it is)
+  int fusion_tried = 0;                   // camera hypotheses fitted and checked
+  FusionMatchStats fusion_match;
+  double fusion_ms = 0;                   // features, matching and fit
+  std::string mvkp_reason;                // auto: why MVKP found no camera
 };
 
 class ViewRegistrar {
  public:
-  // `nadir` 8-bit grey; stage 1: `nadir_to_depth` (nadir px -> depth px) and
-  // `lean_px_per_m` (depth px per metre of height); `depth` the DSM (metres,
-  // NaN no return) with cell size `res_m`. Trains the tiles.
+  // `nadir` 8-bit grey or BGR (MVKP and the refinements see it grey);
+  // `nadir_color` (optional, BGR): the same photo in colour for fusion's
+  // vegetation map, when `nadir` is the grey decode of it; stage 1:
+  // `nadir_to_depth` (nadir px -> depth px) and `lean_px_per_m` (depth px
+  // per metre of height); `depth` the DSM (metres, NaN no return) with cell
+  // size `res_m`. Trains the tiles (method mvkp, auto) and describes the
+  // photo's fusion features (fusion, auto).
   ViewRegistrar(const cv::Mat1f& depth, double res_m, const cv::Mat& nadir, const cv::Matx33d& nadir_to_depth,
-                cv::Point2d lean_px_per_m, const ViewRegistrarOptions& options = {});
+                cv::Point2d lean_px_per_m, const ViewRegistrarOptions& options = {}, const cv::Mat& nadir_color = {});
 
-  // The camera of an 8-bit grey view with intrinsics K (no distortion).
-  ViewRegistration Register(const cv::Mat& view, const cv::Matx33d& K) const;
+  // The camera of an 8-bit grey or BGR view with intrinsics K (no
+  // distortion), by options.method; `view_color` (optional, BGR) as
+  // nadir_color above.
+  ViewRegistration Register(const cv::Mat& view, const cv::Matx33d& K, const cv::Mat& view_color = {}) const;
 
   // Replaces stage 1 (as at construction), keeping the trained tiles: what
   // a correction of stage 1 by the views (Stage1Correction) needs.
   void Restage(const cv::Matx33d& nadir_to_depth, cv::Point2d lean_px_per_m);
   const cv::Matx33d& nadir_to_depth() const { return nadir_to_depth_; }
 
-  double train_ms() const { return tiles_.train_ms(); }
+  // the tiles' training and the nadir photo's fusion features (the methods' share)
+  double train_ms() const { return (tiles_ ? tiles_->train_ms() : 0.0) + fusion_train_ms_; }
   double nadir_gsd_m() const { return nadir_gsd_m_; }   // of the photo given
-  std::size_t tiles() const { return tiles_.size(); }
+  std::size_t tiles() const { return tiles_ ? tiles_->size() : 0; }  // 0 for method fusion
+  // The nadir photo's fusion features (empty for method mvkp) and their time.
+  const FusionFeatures& nadir_fusion() const { return nadir_fusion_; }
   const NadirLifter& lifter() const { return lifter_; }
 
  private:
+  void MatchTiles(const cv::Mat& gray, const cv::Matx33d& K, ViewRegistration* r) const;
+  void MatchFeatures(const cv::Mat& view, const cv::Mat& gray, const cv::Matx33d& K, ViewRegistration* r) const;
+  bool LiftTop(cv::Point2d p, cv::Point3d* world) const;
+
   ViewRegistrarOptions options_;
   cv::Mat1f depth_;   // kept for Restage
   cv::Mat nadir_;
   double res_m_;
   cv::Matx33d nadir_to_depth_;
   double nadir_gsd_m_;
-  NadirTiles tiles_;
+  std::optional<NadirTiles> tiles_;  // not trained for method fusion
   NadirLifter lifter_;
   GuidedRefiner refiner_;
   OutlineRefiner outline_;
+  FusionFeatures nadir_fusion_;
+  double fusion_train_ms_ = 0;
 };
 
 // Stage 1 corrected by the views whose camera the LiDAR's outlines replaced
