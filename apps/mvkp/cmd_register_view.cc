@@ -404,6 +404,14 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
                 "described by shape contexts (7.3.2); auto: mvkp, then fusion for a view mvkp finds no camera for")
       ->check(CLI::IsMember({"mvkp", "fusion", "auto"}))
       ->capture_default_str();
+  c->add_option("--fusion-tilts", a->reg.fusion_tilts,
+                "fusion: tilts off nadir (degrees) the view is rectified for, in turn (an upright camera)")
+      ->check(CLI::Range(0.0, 88.0))
+      ->capture_default_str();
+  c->add_option("--fusion-hypotheses", a->reg.fusion_hypotheses,
+                "fusion: camera hypotheses fitted to the LiDAR outlines and checked against the nadir photo")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   c->add_option("--focal", a->focal, "focal length of the oblique camera, pixels (default: from --hfov)")
       ->check(CLI::Range(1.0, 1e6));
   c->add_option("--hfov", a->hfov, "horizontal field of view of the oblique camera, degrees")

@@ -57,6 +57,7 @@ TEST(FusionRegister, RightCamerasOrNone) {
     ++found;
     EXPECT_LT(CheckPointError(r.pose.camera, v), 2.0) << k.tilt << " " << k.azimuth << ": " << r.pose.reason;
     EXPECT_GE(r.refinement.inliers, Fusion().fusion_min_confirmed);
+    EXPECT_GE(r.refinement.inliers, Fusion().fusion_min_confirmed_share * r.refinement.tried);
   }
   EXPECT_GE(found, 2);
 }
@@ -104,6 +105,9 @@ TEST(FusionRegister, RefusesBadOptions) {
   EXPECT_THROW(o.Check(), Error);
   o = Fusion();
   o.fusion_min_confirmed = 0;
+  EXPECT_THROW(o.Check(), Error);
+  o = Fusion();
+  o.fusion_min_confirmed_share = 1.5;
   EXPECT_THROW(o.Check(), Error);
 }
 

@@ -26,10 +26,11 @@ void ViewRegistrarOptions::Check() const {
   rectify.Check();
   for (double t : fusion_tilts)
     Require(t >= 0 && t < 89, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: fusion_tilts must be in [0, 89)");
-  Require(fusion_min_confirmed >= 6 && fusion_lift_m >= 0 && fusion_lift_m <= 20 && fusion_hypotheses >= 0 &&
+  Require(fusion_min_confirmed >= 6 && fusion_min_confirmed_share >= 0 && fusion_min_confirmed_share <= 1 &&
+              fusion_lift_m >= 0 && fusion_lift_m <= 20 && fusion_hypotheses >= 0 &&
               fusion_hypotheses <= 1000 && fusion_min_features >= 1 && !fusion_radii.empty(),
           ErrorCode::kInvalidArgument,
-          "ViewRegistrarOptions: fusion_min_confirmed >= 6, fusion_lift_m in [0, 20], fusion_hypotheses in "
+          "ViewRegistrarOptions: fusion_min_confirmed >= 6, fusion_min_confirmed_share in [0, 1], fusion_lift_m in [0, 20], fusion_hypotheses in "
           "[0, 1000], fusion_min_features >= 1, fusion_radii not empty");
   for (double r : fusion_radii)
     Require(r >= 0.5 && r <= 256, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: fusion_radii in [0.5, 256]");
@@ -308,7 +309,8 @@ void ViewRegistrar::MatchFeatures(const cv::Mat& view, const cv::Mat& gray, cons
     outline_.Fit(*maps, K, lifter_, options_.fusion_radii, &p);
     const GuidedRefinement g = refiner_.Refine(gray, K, lifter_, {}, {}, &p);
     if (g.refined && g.inliers > best_confirmed) best_confirmed = g.inliers, best_tried = g.tried;
-    if (g.refined && g.inliers >= options_.fusion_min_confirmed) {
+    if (g.refined && g.inliers >= options_.fusion_min_confirmed &&
+        g.inliers >= options_.fusion_min_confirmed_share * g.tried) {
       used = &trials[std::size_t(q.trial)];
       answer = &h;
       r.pose = p;
@@ -324,9 +326,9 @@ void ViewRegistrar::MatchFeatures(const cv::Mat& view, const cv::Mat& gray, cons
     r.pose = {};
     r.pose.reason = cv::format(
         "fusion: %d camera hypotheses tried (best: %d view features agree, %d needed), none confirmed by the nadir "
-        "photo's texture (best %d of %d corners, %d needed)",
+        "photo's texture (best %d of %d corners, %d and %.0f %% needed)",
         tried, best_features, options_.fusion_min_features, best_confirmed, best_tried,
-        options_.fusion_min_confirmed);
+        options_.fusion_min_confirmed, 100 * options_.fusion_min_confirmed_share);
   } else {
     // the agreeing pairs, and which of them the final camera explains
     r.fusion_tilt = used->tilt;
