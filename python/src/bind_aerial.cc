@@ -358,7 +358,8 @@ void BindAerial(py::module_& m) {
       m, "ViewRegistrar",
       "Stage 2 of aerial registration (issue 22): the camera of oblique views of the area of a nadir photo, "
       "through the photo's stage-1 registration (as `mvkp register-view` / `register-all`). Built once per "
-      "nadir photo (trains MVKP on its tiles), then register() per view.")
+      "nadir photo (trains MVKP on its tiles for method 'mvkp' and 'auto', describes its regions and edgelet "
+      "lists for 'fusion' and 'auto'), then register() per view.")
       .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
                        std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
                        int min_inliers, double max_height_step_m, bool refine, bool outline_refine,

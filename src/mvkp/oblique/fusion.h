@@ -66,9 +66,10 @@ struct FusionOptions {
   int shortlist = 12;           // first layer: nadir candidates per view feature
   double max_cost = 0.45;       // of the best shift (mean Hellinger distance)
   double max_cost_ratio = 0.9;  // best / second best source feature
-  // Nadir features kept per view feature (each from another source; the
-  // thesis keeps one): more candidates let the consensus find a right pair
-  // that the descriptors rank second or third.
+  // Nadir features kept per view feature (each from another source). The
+  // thesis keeps one; on the four views of tuning seed 1 / dense / city 0,
+  // eight raised the right feature pairs from 0-2 to 1-4 per view while
+  // multiplying the wrong ones by eight: left at one.
   int candidates = 1;
   int max_matches = 60;         // per track, lowest cost ratio first
   int pair_step = 2;            // every pair_step-th anchor pair of a matched feature is kept
@@ -79,13 +80,13 @@ struct Edgelet {
   cv::Point2f a, b;     // input px, in list order once listed
   int label = -1;       // region (first peak); -1: none near
   int label2 = -1;      // second peak, or -1
-  int list = -1;        // the ordered list it joined (first label), or -1
+  int list = -1;        // the ordered list this copy joined (an edgelet of two groups is in two lists)
 };
 
 struct FusionFeatures {
   std::vector<ShapeDescriptor> regions;  // ROI contours and partials; .region = source region
   std::vector<ShapeDescriptor> lists;    // OEL anchors; .region = source list
-  std::vector<Edgelet> edgelets;         // all, input px
+  std::vector<Edgelet> edgelets;         // the listed ones, list by list in order, input px
   std::vector<std::vector<cv::Point>> roi_contours;  // input px
   int rois = 0, oels = 0;
   double ms = 0;
