@@ -147,6 +147,8 @@ double OutlineRefiner::Score(const OutlineEdgeMaps& maps, const cv::Matx34d& P, 
     const cv::Point3d& w = world_[i];
     const cv::Point3d w2(w.x + 0.5 * normal_[i][0], w.y + 0.5 * normal_[i][1], w.z);
     if (!Project(P, w, &u) || !Project(P, w2, &u2)) continue;
+    // bounded before rounding: a rough camera projects points anywhere
+    if (!(u.x > -0.5 && u.y > -0.5 && u.x < maps.size.width - 0.5 && u.y < maps.size.height - 0.5)) continue;
     const int x = int(std::lround(u.x)), y = int(std::lround(u.y));
     if (x < 0 || y < 0 || x >= maps.size.width || y >= maps.size.height) continue;
     if (cv::norm(u2 - u) < 0.05) continue;

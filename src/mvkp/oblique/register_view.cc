@@ -253,8 +253,9 @@ void ViewRegistrar::MatchFeatures(const cv::Mat& view, const cv::Mat& gray, cons
     for (NadirMatch c : MatchFusion(nadir_fusion_, vf, options_.fusion, &t.stats)) {
       const cv::Vec3d q = back * cv::Vec3d(c.view.x, c.view.y, 1);
       if (!(std::abs(q[2]) > 1e-12)) continue;
-      c.view = cv::Point2f(float(q[0] / q[2]), float(q[1] / q[2]));
-      if (!(c.view.x >= 0 && c.view.y >= 0 && c.view.x <= view.cols - 1 && c.view.y <= view.rows - 1)) continue;
+      const double vx = q[0] / q[2], vy = q[1] / q[2];  // bounded before narrowing
+      if (!(vx >= 0 && vy >= 0 && vx <= view.cols - 1 && vy <= view.rows - 1)) continue;
+      c.view = cv::Point2f(float(vx), float(vy));
       cv::Point3d w;
       if (LiftTop(cv::Point2d(c.nadir), &w))
         t.X.push_back(w), t.px.emplace_back(c.view), t.lifted.push_back(c), pair_of.push_back(c.tile);
