@@ -220,6 +220,7 @@ class Stage2 {
     out["inliers"] = p.inliers;
     out["rms_px"] = p.rms_px;
     out["scale"] = r.scale;
+    out["working_scale"] = r.working_scale;  // working px per view px (--max-view-px)
     const GuidedRefinement& g = r.refinement;
     out["refinement"] = {{"refined", g.refined}, {"tried", g.tried},   {"found", g.found},
                          {"inliers", g.inliers}, {"rms_px", g.rms_px}, {"shift_px", g.shift_px}};
@@ -403,6 +404,11 @@ void AddStage2Options(CLI::App* c, Stage2Args* a) {
                 "mvkp: MVKP trained on the nadir photo's tiles (thesis 7.3.1); fusion: regions and edgelet lists "
                 "described by shape contexts (7.3.2); auto: mvkp, then fusion for a view mvkp finds no camera for")
       ->check(CLI::IsMember({"mvkp", "fusion", "auto"}))
+      ->capture_default_str();
+  c->add_option("--max-view-px", a->reg.max_view_px,
+                "register a view whose longer side exceeds this resized to it; the answer is in its own pixels "
+                "(0: never)")
+      ->check(CLI::Range(0, 65536))
       ->capture_default_str();
   c->add_option("--fusion-tilts", a->reg.fusion_tilts,
                 "fusion: tilts off nadir (degrees) the view is rectified for, in turn (an upright camera)")

@@ -363,8 +363,9 @@ void BindAerial(py::module_& m) {
       .def(py::init([](py::handle depth, py::handle nadir, py::handle nadir_to_depth, double res_m,
                        std::pair<double, double> lean, int tile_px, double nadir_gsd_m, std::vector<double> scales,
                        int min_inliers, double max_height_step_m, bool refine, bool outline_refine,
-                       const std::string& method) {
+                       const std::string& method, int max_view_px) {
              ViewRegistrarOptions o;
+             o.max_view_px = max_view_px;
              if (method == "mvkp") o.method = ViewMethod::kMvkp;
              else if (method == "fusion") o.method = ViewMethod::kFusion;
              else if (method == "auto") o.method = ViewMethod::kAuto;
@@ -390,14 +391,15 @@ void BindAerial(py::module_& m) {
            py::arg("lean") = std::pair<double, double>(0.0, 0.0), py::arg("tile_px") = 320,
            py::arg("nadir_gsd_m") = 0.4, py::arg("scales") = std::vector<double>{1.0, 0.5, 0.3},
            py::arg("min_inliers") = 15, py::arg("max_height_step_m") = 2.0, py::arg("refine") = true,
-           py::arg("outline_refine") = true, py::arg("method") = "mvkp",
+           py::arg("outline_refine") = true, py::arg("method") = "mvkp", py::arg("max_view_px") = 1600,
            "depth: (H, W) float32 DSM in metres (NaN no return); nadir: the nadir photo (gray or BGR); "
            "nadir_to_depth: stage 1's (3, 3) homography (nadir px -> depth px); res_m: metres per depth cell; "
            "lean: stage 1's lean_depth_px_per_m; max_height_step_m: pairs within a tile pixel of a larger height "
            "step of the DSM are not lifted (0: keep all); refine: refine the camera against the whole nadir photo "
            "(correlation at the corners it predicts); outline_refine: then refit it to the DSM's roof outlines seen as "
            "edges of the view, which undoes a stage-1 error; method: 'mvkp' (MVKP tiles, thesis 7.3.1), 'fusion' "
-           "(regions and edgelet lists, 7.3.2) or 'auto' (mvkp, then fusion for a view mvkp finds no camera for).")
+           "(regions and edgelet lists, 7.3.2) or 'auto' (mvkp, then fusion for a view mvkp finds no camera for); "
+           "max_view_px: a larger view is registered resized to this (answers in its own pixels; 0: never).")
       .def(
           "register",
           [](const ViewRegistrar& reg, py::handle view, double hfov, double focal) {
@@ -440,6 +442,7 @@ void BindAerial(py::module_& m) {
             out["inliers"] = p.inliers;
             out["rms_px"] = p.rms_px;
             out["scale"] = r.scale;
+            out["working_scale"] = r.working_scale;
             py::dict gr;
             gr["refined"] = r.refinement.refined;
             gr["tried"] = r.refinement.tried;

@@ -75,7 +75,7 @@ TEST(FusionRegister, OtherGroundGetsNoCamera) {
 }
 
 // Auto: MVKP answers when it can; fusion only runs for a view MVKP finds
-// no camera for.
+// no camera for. A large view is registered at the working resolution.
 TEST(FusionRegister, AutoRunsFusionOnlyWhenMvkpFindsNothing) {
   const City c = MakeTown("suburb", 4);
   const double res = c.options.res_m;
@@ -89,6 +89,24 @@ TEST(FusionRegister, AutoRunsFusionOnlyWhenMvkpFindsNothing) {
   EXPECT_EQ(r.method, ViewMethod::kMvkp);
   EXPECT_FALSE(r.fusion_ran);
   EXPECT_LT(CheckPointError(r.pose.camera, v), 2.0);
+  EXPECT_EQ(r.working_scale, 1.0);
+  // The same view 2.5 times larger (2000 x 1500) is registered at the
+  // working resolution (1600 px) and answered in its own pixels: the true
+  // camera scaled, within 2.5 px (1 px of the original view).
+  cv::Mat big;
+  cv::resize(v.image, big, cv::Size(), 2.5, 2.5, cv::INTER_CUBIC);
+  const cv::Matx33d S(2.5, 0, 0.75, 0, 2.5, 0.75, 0, 0, 1);  // x' = 2.5 (x + 0.5) - 0.5
+  const ViewRegistration rb = reg.Register(big, S * v.K);
+  ASSERT_TRUE(rb.pose.ok) << rb.pose.reason;
+  EXPECT_NEAR(rb.working_scale, 0.8, 1e-9);
+  double err = 0;
+  for (const ObliqueCheckPoint& c : v.checks) {
+    const cv::Vec3d u = rb.pose.camera * cv::Vec4d(c.world.x, c.world.y, c.world.z, 1);
+    const cv::Vec3d t = S * cv::Vec3d(c.oblique_px.x, c.oblique_px.y, 1);
+    err += std::hypot(u[0] / u[2] - t[0], u[1] / u[2] - t[1]);
+  }
+  EXPECT_LT(err / double(v.checks.size()), 2.5);
+  for (const NadirMatch& m : rb.matches) EXPECT_TRUE(m.view.x >= 0 && m.view.x < big.cols && m.view.y >= 0 && m.view.y < big.rows);
   // a featureless view: MVKP finds nothing, fusion runs and finds nothing
   const ViewRegistration none = reg.Register(cv::Mat(600, 800, CV_8UC3, cv::Scalar(90, 120, 100)), v.K);
   EXPECT_FALSE(none.pose.ok);
@@ -108,6 +126,9 @@ TEST(FusionRegister, RefusesBadOptions) {
   EXPECT_THROW(o.Check(), Error);
   o = Fusion();
   o.fusion_min_confirmed_share = 1.5;
+  EXPECT_THROW(o.Check(), Error);
+  o = Fusion();
+  o.max_view_px = 10;
   EXPECT_THROW(o.Check(), Error);
 }
 

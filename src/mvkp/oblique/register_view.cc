@@ -26,6 +26,8 @@ void ViewRegistrarOptions::Check() const {
   rectify.Check();
   for (double t : fusion_tilts)
     Require(t >= 0 && t < 89, ErrorCode::kInvalidArgument, "ViewRegistrarOptions: fusion_tilts must be in [0, 89)");
+  Require(max_view_px == 0 || (max_view_px >= 64 && max_view_px <= 65536), ErrorCode::kInvalidArgument,
+          "ViewRegistrarOptions: max_view_px must be 0 or in [64, 65536]");
   Require(fusion_min_confirmed >= 6 && fusion_min_confirmed_share >= 0 && fusion_min_confirmed_share <= 1 &&
               fusion_lift_m >= 0 && fusion_lift_m <= 20 && fusion_hypotheses >= 0 &&
               fusion_hypotheses <= 1000 && fusion_min_features >= 1 && !fusion_radii.empty(),
@@ -364,6 +366,32 @@ void ViewRegistrar::MatchFeatures(const cv::Mat& view, const cv::Mat& gray, cons
 }
 
 ViewRegistration ViewRegistrar::Register(const cv::Mat& view, const cv::Matx33d& K, const cv::Mat& view_color) const {
+  Require(!view.empty(), ErrorCode::kInvalidArgument, "ViewRegistrar: an 8-bit grey or BGR view is required");
+  const int longer = std::max(view.cols, view.rows);
+  if (options_.max_view_px <= 0 || longer <= options_.max_view_px) return RegisterAt(view, K, view_color);
+  // A large view is registered at a working resolution: the radii, windows
+  // and scales of every step are in view pixels of the sizes it was built
+  // for. The answer is given in the view's own pixels.
+  const double k = double(options_.max_view_px) / longer;
+  const cv::Size ws(std::max(1, int(std::lround(view.cols * k))), std::max(1, int(std::lround(view.rows * k))));
+  cv::Mat v, c;
+  cv::resize(view, v, ws, 0, 0, cv::INTER_AREA);
+  if (!view_color.empty()) cv::resize(Colour(view_color, view), c, ws, 0, 0, cv::INTER_AREA);
+  const double sx = double(ws.width) / view.cols, sy = double(ws.height) / view.rows;
+  // pixel centres at integers: x' = sx (x + 0.5) - 0.5
+  const cv::Matx33d S(sx, 0, 0.5 * sx - 0.5, 0, sy, 0.5 * sy - 0.5, 0, 0, 1), Si = S.inv();
+  ViewRegistration r = RegisterAt(v, S * K, c);
+  r.working_scale = std::sqrt(sx * sy);
+  if (r.pose.ok) r.pose.camera = Si * r.pose.camera;  // K [R | t] = S^-1 (S K) [R | t]
+  for (NadirMatch& m : r.matches) {
+    const cv::Vec3d q = Si * cv::Vec3d(m.view.x, m.view.y, 1);
+    m.view = cv::Point2f(float(q[0]), float(q[1]));  // an affine map of in-view points: bounded
+  }
+  r.pose.rms_px /= r.working_scale;
+  return r;
+}
+
+ViewRegistration ViewRegistrar::RegisterAt(const cv::Mat& view, const cv::Matx33d& K, const cv::Mat& view_color) const {
   const cv::Mat gray = Gray(view);
   ViewRegistration r;
   Timer tm;

@@ -27,6 +27,12 @@ const char* ViewMethodName(ViewMethod m);
 
 struct ViewRegistrarOptions {
   ViewMethod method = ViewMethod::kMvkp;
+  // A view whose longer side exceeds this is registered area-resized to it
+  // (radii, windows and scales below are in view pixels of 640-1600 px
+  // views); the camera and the matches are given in the view's own pixels.
+  // A 4096 x 3072 copy of a 1024 x 768 view: found at 1600 px, not at full
+  // size by either method (and fusion's edge maps took 0.8 GB). 0: never.
+  int max_view_px = 1600;
   NadirTilesOptions tiles;
   ViewPoseOptions pose;
   // The view is searched at each scale in turn (area-averaged) until a camera
@@ -113,6 +119,7 @@ struct ViewRegistration {
   FusionMatchStats fusion_match;
   double fusion_ms = 0;                   // features, matching and fit
   std::string mvkp_reason;                // auto: why MVKP found no camera
+  double working_scale = 1;               // working px per view px (options.max_view_px)
 };
 
 class ViewRegistrar {
@@ -146,6 +153,7 @@ class ViewRegistrar {
   const NadirLifter& lifter() const { return lifter_; }
 
  private:
+  ViewRegistration RegisterAt(const cv::Mat& view, const cv::Matx33d& K, const cv::Mat& view_color) const;
   void MatchTiles(const cv::Mat& gray, const cv::Matx33d& K, ViewRegistration* r) const;
   void MatchFeatures(const cv::Mat& view, const cv::Mat& gray, const cv::Matx33d& K, ViewRegistration* r) const;
   bool LiftTop(cv::Point2d p, cv::Point3d* world) const;
