@@ -28,6 +28,7 @@ void DepthSegmentOptions::Check() const {
   need(lcc_sigma > 0, "lcc_sigma must be > 0 px");
   need(lcc_percent >= 0 && lcc_percent <= 1, "lcc_percent must be in [0, 1]");
   need(std::isfinite(lcc_noise) && lcc_noise >= 0, "lcc_noise must be >= 0 m");
+  need(std::isfinite(lcc_slope) && lcc_slope >= 0 && lcc_slope <= 10, "lcc_slope must be in [0, 10] m per px");
   need(lcc_min_support >= 0 && lcc_min_support <= 1, "lcc_min_support must be in [0, 1]");
   need(refine_iterations >= 0, "refine_iterations must be >= 0");
   need(min_area >= 0, "min_area must be >= 0 px");
@@ -141,6 +142,7 @@ cv::Mat1f EstimateGround(const cv::Mat1f& d, int window, float fill) {
 struct Offset {
   int dx, dy;
   float factor;  // 1 - exp(-r^2 / (2 sigma^2))
+  float slack;   // lcc_noise + r lcc_slope, metres
 };
 
 class Segmenter {
@@ -152,7 +154,8 @@ class Segmenter {
       for (int dx = -r; dx <= r; ++dx) {
         const double rr = dx * dx + dy * dy;
         if (rr == 0 || rr > (r + 0.5) * (r + 0.5)) continue;
-        offsets_.push_back({dx, dy, static_cast<float>(1.0 - std::exp(-rr / (2 * o.lcc_sigma * o.lcc_sigma)))});
+        offsets_.push_back({dx, dy, static_cast<float>(1.0 - std::exp(-rr / (2 * o.lcc_sigma * o.lcc_sigma))),
+                            static_cast<float>(o.lcc_noise + std::sqrt(rr) * o.lcc_slope)});
       }
     lcc_.assign(static_cast<size_t>(w_) * ht_, 0);
     stamp_.assign(static_cast<size_t>(w_) * ht_, 0);
@@ -214,7 +217,7 @@ class Segmenter {
       const float v = h_(yy, xx);
       if (!(v >= wl_low_)) continue;  // NaN or ground
       ++num;
-      consistent += std::fabs(v - c) < off.factor * c + o_.lcc_noise;
+      consistent += std::fabs(v - c) < off.factor * c + off.slack;
     }
     const bool pass = c >= wl_low_ && num >= o_.lcc_min_support * static_cast<double>(offsets_.size()) &&
                       consistent >= o_.lcc_percent * num;

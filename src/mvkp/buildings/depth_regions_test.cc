@@ -355,6 +355,58 @@ TEST(SegmentDepth, NarrowStripsAreNotBuildings) {
   EXPECT_THROW(SegmentDepth(d, all), Error);
 }
 
+// Low houses with steep pitched roofs (eaves 3 m, ridge 3-5 m higher, 0.5 m
+// px: a rise of 0.3-0.5 m per px): the thesis' LCC, whose tolerance grows
+// with the height above ground, fails the slopes of a low roof; lcc_slope
+// accepts a plane's rise. A noisy canopy beside them stays out either way.
+TEST(SegmentDepth, LowHousesWithSteepRoofsAreFound) {
+  cv::Mat1f d(200, 200, 100.f);
+  cv::RNG rng(7);
+  for (int y = 0; y < d.rows; ++y)
+    for (int x = 0; x < d.cols; ++x) d(y, x) += static_cast<float>(rng.gaussian(0.05));
+  struct House {
+    cv::Rect r;
+    float ridge;  // metres above the eaves
+    bool hip;
+  };
+  const std::vector<House> houses = {{{20, 20, 24, 16}, 3.f, false},   // gable, ridge along x
+                                     {{80, 20, 16, 26}, 4.f, false},   // gable, ridge along y
+                                     {{130, 30, 22, 20}, 5.f, true},   // hip
+                                     {{30, 120, 20, 18}, 4.5f, true}};  // hip
+  for (const House& h : houses)
+    for (int y = h.r.y; y < h.r.y + h.r.height; ++y)
+      for (int x = h.r.x; x < h.r.x + h.r.width; ++x) {
+        // distance to the nearest eave, as a share of the half-width across the ridge
+        const double fx = 1 - std::abs(2.0 * (x - h.r.x) + 1 - h.r.width) / h.r.width;
+        const double fy = 1 - std::abs(2.0 * (y - h.r.y) + 1 - h.r.height) / h.r.height;
+        const bool along_x = h.r.width >= h.r.height;
+        const double across = along_x ? fy : fx, along = along_x ? fx : fy;
+        double f = across;
+        if (h.hip) f = std::min(across, along * (along_x ? double(h.r.width) / h.r.height : double(h.r.height) / h.r.width));
+        d(y, x) = 103.f + h.ridge * static_cast<float>(std::min(1.0, f)) + static_cast<float>(rng.gaussian(0.05));
+      }
+  for (int y = 110; y < 150; ++y)  // a tree crown, 8-12 m with returns inside it
+    for (int x = 120; x < 160; ++x)
+      if ((x - 140) * (x - 140) + (y - 130) * (y - 130) < 18 * 18) d(y, x) = 100.f + 10.f + static_cast<float>(rng.gaussian(2.0));
+  const std::vector<BuildingRegion> r = SegmentDepth(d);
+  ASSERT_EQ(r.size(), houses.size());
+  for (const House& h : houses) {
+    const auto it = std::find_if(r.begin(), r.end(), [&](const BuildingRegion& b) { return (b.bbox & h.r).area() > 0; });
+    ASSERT_NE(it, r.end()) << h.r;
+    EXPECT_GE((it->bbox & h.r).area(), 0.8 * h.r.area()) << h.r << " " << it->bbox;
+    EXPECT_LE(it->bbox.area(), 1.2 * h.r.area()) << h.r << " " << it->bbox;
+  }
+  DepthSegmentOptions flat;  // the thesis' LCC alone: the steep roofs are lost or broken up
+  flat.lcc_slope = 0;
+  const std::vector<BuildingRegion> rf = SegmentDepth(d, flat);
+  int whole = 0;
+  for (const House& h : houses)
+    for (const BuildingRegion& b : rf) whole += (b.bbox & h.r).area() >= 0.8 * h.r.area();
+  EXPECT_LT(whole, int(houses.size()));
+  flat.lcc_slope = -0.1f;
+  EXPECT_THROW(SegmentDepth(d, flat), Error);
+}
+
 TEST(SegmentDepth, NothingStandingGivesNoRegions) {
   EXPECT_TRUE(SegmentDepth(cv::Mat1f(200, 200, 37.f)).empty());
   cv::Mat1f slope(200, 300);
