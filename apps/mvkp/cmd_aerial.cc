@@ -225,6 +225,9 @@ Json RegisterCompute(RegisterArgs& a) {
     // which method answered ("method" is the tool's name in the correspondence JSON)
     out["registration_method"] = reg.ok ? Json(ar.method) : Json(nullptr);
     out["confidence"] = reg.ok ? ar.confidence : 0.0;
+    // the largest mean gap (depth px) to an equally good pose found by the
+    // ambiguity check (RegistrationOptions::ambiguity_px); 0 when it did not run
+    out["ambiguity_px"] = reg.ambiguity_px;
     // the photo's lean (conventional orthophoto): roofs show lean * height
     // away from their footprints; the homography maps the ground
     if (reg.ok) {
@@ -354,6 +357,11 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_option("--max-rms", a->opt.max_rms_px, "final RMS contour distance (depth px) needed to accept")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 100.0));
+  c->add_option("--ambiguity-px", a->opt.ambiguity_px,
+                "refuse a perspective answer when a pose refined from a perturbation of it scores as well and "
+                "lies this far away on average over the outlines in view (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0));
   c->add_option("--min-edge-contrast", a->edge.min_contrast,
                 "image check: depth outlines must lie on photo edges this much more than beside them (0: off)")
       ->capture_default_str()

@@ -212,6 +212,9 @@ void BindAerial(py::module_& m) {
         return l;
       }, "Accepted region pairs: dicts of photo / depth region index, cost, cost_ratio, shift.")
       .def_property_readonly("rms_px", [](const PyRegistration& r) { return r.reg.rms_px; })
+      .def_property_readonly(
+          "ambiguity_px", [](const PyRegistration& r) { return r.reg.ambiguity_px; },
+          "The largest mean gap, depth px, to an equally good pose the ambiguity check found (0 when it did not run).")
       .def_property_readonly("edge", [](const PyRegistration& r) -> py::object {
         if (!r.reg.edge.enough) return py::none();
         py::dict d;

@@ -36,6 +36,7 @@ def test_segment_and_register(city):
         assert r2.homography.shape == (3, 3)
         assert mvkp.mean_corner_error(r2.homography, city.photo_to_depth, w, h) < 5.0
         assert r2.correspondences.shape[1] == 4 and r2.region_matches
+        assert 0.0 <= r2.ambiguity_px <= 5.0  # the answer is determined to the default 5 px
     else:
         assert r2.homography is None and r2.reason.startswith("no registration found")
         assert r2.lean_depth_px_per_m is None

@@ -170,6 +170,23 @@ EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d 
   return s;
 }
 
+double EdgeEvidence::MeanGap(const cv::Matx33d& a, const cv::Matx33d& b, int stride) const {
+  Require(stride >= 1, ErrorCode::kInvalidArgument, "EdgeEvidence::MeanGap: stride must be >= 1");
+  const cv::Matx33d ai = a.inv();
+  const double w = grey_.cols / photo_scale_, h = grey_.rows / photo_scale_;
+  double sum = 0;
+  int n = 0;
+  for (size_t i = 0; i < samples_.size(); i += size_t(stride)) {
+    const cv::Point2d q(samples_[i].q);
+    const cv::Point2d p = Map(ai, q);
+    if (!(p.x >= 0 && p.y >= 0 && p.x < w && p.y < h)) continue;
+    const double d = cv::norm(Map(b, p) - q);
+    if (!std::isfinite(d)) return std::numeric_limits<double>::infinity();
+    sum += d, ++n;
+  }
+  return n ? sum / n : 0.0;
+}
+
 cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
                                  const cv::Rect2d* support, cv::Point2d* lean) const {
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);

@@ -109,6 +109,12 @@ class EdgeEvidence {
   cv::Matx33d RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective,
                             cv::Point2d* lean = nullptr) const;
 
+  // Mean distance, depth px, between where `a` and `b` map the photo points
+  // that `a` puts on the outline samples in view (every stride-th sample):
+  // how far apart two answers are where the evidence lies. 0 when no sample
+  // is in view.
+  double MeanGap(const cv::Matx33d& a, const cv::Matx33d& b, int stride = 4) const;
+
   const EdgeEvidenceOptions& options() const { return opt_; }
   bool has_heights() const { return has_heights_; }
   double reference_height() const { return ref_height_; }  // lean steps pivot about it (median sample height, m)

@@ -175,6 +175,26 @@ TEST(EdgeEvidence, RefineEstimatesTheLeanOfAConventionalOrthophoto) {
   EXPECT_THROW(EdgeEvidence(s.photo, 1.0, footprints, {}, std::vector<float>(3, 10.f)), Error);
 }
 
+// MeanGap: how far two transforms put the photo points on the outlines in
+// view, in depth px; outlines out of view do not count.
+TEST(EdgeEvidence, MeanGapMeasuresTwoAnswersWhereTheOutlinesAre) {
+  cv::Mat1b photo(200, 200, uchar(0));
+  const std::vector<Contour> outlines = {{{20, 20}, {60, 20}, {60, 60}, {20, 60}},
+                                         {{500, 500}, {540, 500}, {540, 540}, {500, 540}}};  // out of view
+  const EdgeEvidence ev(photo, 1.0, outlines);
+  const cv::Matx33d I = cv::Matx33d::eye();
+  EXPECT_NEAR(ev.MeanGap(I, I), 0, 1e-12);
+  EXPECT_NEAR(ev.MeanGap(I, cv::Matx33d(1, 0, 3, 0, 1, 4, 0, 0, 1), 1), 5.0, 1e-9);
+  // a scale about the square's centre moves its outline by 10 % of its distance from the centre
+  const cv::Matx33d S(1.1, 0, -4, 0, 1.1, -4, 0, 0, 1);
+  const double g = ev.MeanGap(I, S, 1);
+  EXPECT_GT(g, 2.0);
+  EXPECT_LT(g, 2.83);
+  // nothing in view: 0
+  EXPECT_EQ(ev.MeanGap(cv::Matx33d(1, 0, 1000, 0, 1, 1000, 0, 0, 1), I), 0);
+  EXPECT_THROW(ev.MeanGap(I, I, 0), Error);
+}
+
 TEST(EdgeEvidence, NoVerdictWhenTheOutlinesMissThePhoto) {
   const Scene s = MakeScene(6);
   const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);

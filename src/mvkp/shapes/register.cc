@@ -38,6 +38,9 @@ void RegistrationOptions::Check() const {
            single_pair_min_outlines >= 3 && single_pair_min_on_edges >= 0 && single_pair_min_on_edges <= 1 &&
            single_pair_min_confidence >= 0 && single_pair_min_confidence <= 1,
        "RegistrationOptions: single_pair_* out of range");
+  need(std::isfinite(ambiguity_px) && ambiguity_px >= 0 && std::isfinite(ambiguity_perspective) &&
+           ambiguity_perspective > 0 && ambiguity_perspective < 1,
+       "RegistrationOptions: ambiguity_px must be >= 0 and ambiguity_perspective in (0, 1)");
   need(grow_tolerance >= 1 && grow_tolerance <= 4, "RegistrationOptions.grow_tolerance in [1, 4]");
   need(perspective_min_pairs >= 4, "RegistrationOptions.perspective_min_pairs must be >= 4");
   need(edge_rms_factor >= 1 && edge_rms_factor <= 10, "RegistrationOptions.edge_rms_factor in [1, 10]");
@@ -470,18 +473,49 @@ static double PoseGap(const cv::Matx33d& A, const cv::Matx33d& B, const cv::Rect
   return g;
 }
 
+constexpr double kLeanAtBound = 0.9;  // share of EdgeEvidenceOptions::max_lean_px_per_m
+
 // An answer refined with the photo's lean (T3, lean) replaces the accepted
 // one, whose image check gave `accepted`, when it passes the same checks:
 // outlines on edges (no fewer), the perspective bound, a proper transform
-// at `at`. Its image check goes to *e3.
+// at `at`; and when the lean is not at its bound (kLeanAtBound). Its image
+// check goes to *e3.
 static bool LeanAnswerPasses(const EdgeEvidence& ev, const cv::Matx33d& T3, cv::Point2d lean, const EdgeScore& accepted,
                              const RegistrationOptions& opt, const cv::Rect2d& extent, cv::Point2f at, EdgeScore* e3) {
   if (lean == cv::Point2d()) return false;
+  // A lean pressed against its bound is the bound, not an estimate: on true
+  // orthophotos (classic scenes) such leans fitted residue, 0.4 -> 7.9 px.
+  if (std::hypot(lean.x, lean.y) >= kLeanAtBound * ev.options().max_lean_px_per_m) return false;
   *e3 = ev.Evaluate(T3, lean);
   double scale, rot;
   return ev.Accepts(*e3) && e3->regions_on_edges >= accepted.regions_on_edges &&
          (opt.max_perspective <= 0 || PerspectiveAmount(T3, extent) <= opt.max_perspective) &&
          LocalScaleRotation(T3, at, &scale, &rot);
+}
+
+// The largest mean gap (depth px, over the outlines in view) between the
+// answer T (with its lean) and a pose refined from one of 8 perspective
+// perturbations that scores at least the answer's contrast (see
+// RegistrationOptions::ambiguity_px).
+static double AmbiguityGap(const EdgeEvidence& ev, const cv::Matx33d& T, cv::Point2d lean,
+                           const RegistrationOptions& opt, const cv::Rect2d& extent) {
+  const double L = std::max(extent.width, extent.height);
+  if (!(L > 0)) return 0;
+  const double cx = extent.x + extent.width / 2, cy = extent.y + extent.height / 2;
+  const cv::Matx33d to_centre(1, 0, -cx, 0, 1, -cy, 0, 0, 1), from_centre(1, 0, cx, 0, 1, cy, 0, 0, 1);
+  const double c0 = ev.Evaluate(T, lean).contrast;
+  const double step = opt.ambiguity_perspective / L;
+  double gap = 0;
+  for (int i = -1; i <= 1; ++i)
+    for (int j = -1; j <= 1; ++j) {
+      if (i == 0 && j == 0) continue;
+      const cv::Matx33d P(1, 0, 0, 0, 1, 0, i * step, j * step, 1);
+      cv::Point2d l = lean;
+      const cv::Matx33d Tr =
+          ev.Refine(T * from_centre * P * to_centre, true, true, nullptr, lean == cv::Point2d() ? nullptr : &l);
+      if (ev.Evaluate(Tr, l).contrast >= c0) gap = std::max(gap, ev.MeanGap(T, Tr));
+    }
+  return gap;
 }
 
 // The single-pair route (see RegistrationOptions::single_pair_route). Fills
@@ -568,6 +602,15 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   EdgeScore e3;
   if (LeanAnswerPasses(ev, T3, lean, e, opt, extent, photo[hyps[best.h].p].centroid, &e3))
     T = T3, e = e3, res->lean_px_per_m = lean;
+  if (persp && opt.ambiguity_px > 0) {
+    res->ambiguity_px = AmbiguityGap(ev, T, res->lean_px_per_m, opt, extent);
+    if (res->ambiguity_px > opt.ambiguity_px) {
+      const std::string why = what + cv::format("; not determined to %.0f px: an equally good pose lies %.1f px away",
+                                                opt.ambiguity_px, res->ambiguity_px);
+      res->lean_px_per_m = {};
+      return why;
+    }
+  }
   // region pairs consistent with the answer, for the correspondences
   const double tol = opt.inlier_px * std::max(1.0, scale);
   Evaluation pairs = verifier.Evaluate(T, tol);
@@ -965,6 +1008,15 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
                                         photo[pairs[0].first].centroid, &e3)) {
       f.T = lean_answer->T, res.edge = e3, res.lean_px_per_m = lean_answer->lean;
       verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+    }
+    if (image_ok && opt.edge_refine && opt.ambiguity_px > 0 && f.m == Model::kPerspective) {
+      res.ambiguity_px = AmbiguityGap(*evidence, f.T, res.lean_px_per_m, opt, photo_extent);
+      if (res.ambiguity_px > opt.ambiguity_px) {
+        res.lean_px_per_m = {};
+        return cv::format("best consistent set (%d region pairs) is not determined to %.0f px: an equally good "
+                          "pose lies %.1f px away",
+                          int(pairs.size()), opt.ambiguity_px, res.ambiguity_px);
+      }
     }
     res.ok = true;
     res.photo_to_depth = f.T;

@@ -100,6 +100,18 @@ struct RegistrationOptions {
   int single_pair_min_outlines = 8;
   double single_pair_min_on_edges = 0.5;
   double single_pair_min_confidence = 0.5;
+  // Determined, not just plausible (issue 21): an answer's perspective is
+  // perturbed 8 ways (the projective divisor tilted by +-ambiguity_perspective
+  // across the photo, about its centre) and each is refined sharply on the
+  // edges again (with the lean, when the answer has one). If a pose reached so
+  // scores at least the answer's contrast and lies more than ambiguity_px
+  // away on average over the outlines in view (EdgeEvidence::MeanGap), the
+  // evidence does not tell them apart: no answer. (Near misses 5-12 px off
+  // were right by the matched regions and off far from them; measured in
+  // docs/aerial.md.) With image evidence and a perspective model only;
+  // 0 turns it off.
+  double ambiguity_px = 5;
+  double ambiguity_perspective = 0.12;
   bool use_principal_directions = false; // §7.2.4: try hypotheses whose rotation fits the
                                          //   principal directions first; falls back to all
   double principal_tolerance_deg = 12;   // allowed rotation deviation from a predicted one
@@ -124,6 +136,8 @@ struct Registration {
   EdgeScore edge;                     // image evidence of the result (of the last candidate when !ok)
   std::string route = "regions";      // "regions" (a consistent set of region pairs) | "single-pair"
   double route_confidence = 0;        // single-pair route: its margin confidence (see the options)
+  double ambiguity_px = 0;            // the largest mean gap to an equally good pose found (see
+                                      //   RegistrationOptions::ambiguity_px); of the last candidate when !ok
   cv::Point2d lean_px_per_m{0, 0};    // the photo's lean (edge_evidence.h), depth px per metre of
                                       //   height: roofs show this far from their footprints; the
                                       //   transform maps the ground. Zero unless estimated.
