@@ -267,8 +267,12 @@ Json RegisterCompute(RegisterArgs& a) {
     out["region_matches"] = rm;
     out["rms_px"] = reg.rms_px;
     if (reg.edge.enough)
-      out["edge"] = {{"points", reg.edge.points}, {"contrast", reg.edge.contrast}, {"regions", reg.edge.regions},
-                     {"regions_on_edges", reg.edge.regions_on_edges}};
+      out["edge"] = {{"points", reg.edge.points},
+                     {"contrast", reg.edge.contrast},
+                     {"regions", reg.edge.regions},
+                     {"regions_on_edges", reg.edge.regions_on_edges},
+                     {"roof_regions", reg.edge.roof_regions},
+                     {"roof_contrast", reg.edge.roof_regions > 0 ? Json(reg.edge.roof_contrast) : Json(nullptr)}};
     else out["edge"] = nullptr;
     out["hypotheses"] = reg.hypotheses;
     out["depth"] = {{"size", {depth_size.width, depth_size.height}}, {"res_m", d.res_m}};
@@ -366,6 +370,20 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "image check: depth outlines must lie on photo edges this much more than beside them (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
+  c->add_option("--roof-veto", a->edge.roof_veto,
+                "image check: refuse an answer whose outlines in view set roofs apart from the ground by less "
+                "than this (median colour contrast, inside vs around) unless its edge contrast reaches 2.2 (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
+  c->add_option("--roof-accept", a->edge.roof_accept,
+                "image check: a roof contrast this clear admits an edge contrast down to "
+                "--min-edge-contrast-with-roofs (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
+  c->add_option("--min-edge-contrast-with-roofs", a->edge.min_contrast_with_roofs,
+                "image check: the edge contrast a clear roof contrast admits")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 100.0));
   c->add_flag("!--accept-shapes-alone", a->opt.require_image_evidence,
               "also accept on region shapes alone when the image check fails (leaning orthophotos; "
               "can accept look-alike sets far off)");

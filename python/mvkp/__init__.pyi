@@ -279,7 +279,13 @@ class EdgeEvidenceOptions:
     min_lean_gain: float
     min_lean_outlines: int
     min_lean_height_spread_m: float
-    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45, max_lean_px_per_m: float = 0.8, min_lean_gain: float = 0.01, min_lean_outlines: int = 6, min_lean_height_spread_m: float = 4.0) -> None: ...
+    roof_shrink_px: float
+    roof_ring_px: float
+    min_roof_regions: int
+    roof_accept: float
+    min_contrast_with_roofs: float
+    roof_veto: float
+    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45, max_lean_px_per_m: float = 0.8, min_lean_gain: float = 0.01, min_lean_outlines: int = 6, min_lean_height_spread_m: float = 4.0, roof_shrink_px: float = 1.0, roof_ring_px: float = 3.0, min_roof_regions: int = 4, roof_accept: float = 1.5, min_contrast_with_roofs: float = 1.5, roof_veto: float = 0.9) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> EdgeEvidenceOptions: ...
     def check(self) -> None:
@@ -822,7 +828,7 @@ class Registration:
         """The largest mean gap, depth px, to an equally good pose the ambiguity check found (0 when it did not run)."""
     @property
     def edge(self) -> dict[str, Any] | None:
-        """Image evidence of the result (outline samples, gradient on / beside the outlines, contrast); None when too few samples."""
+        """Image evidence of the result (outline samples, gradient on / beside the outlines, contrast, outlines in view and on edges, roofs scored and their median colour contrast); None when too few samples."""
     @property
     def hypotheses(self) -> Any: ...
     @property

@@ -222,8 +222,13 @@ void BindAerial(py::module_& m) {
         d["on"] = r.reg.edge.on;
         d["off"] = r.reg.edge.off;
         d["contrast"] = r.reg.edge.contrast;
+        d["regions"] = r.reg.edge.regions;
+        d["regions_on_edges"] = r.reg.edge.regions_on_edges;
+        d["roof_regions"] = r.reg.edge.roof_regions;
+        d["roof_contrast"] = r.reg.edge.roof_regions > 0 ? py::object(py::float_(r.reg.edge.roof_contrast)) : py::none();
         return d;
-      }, "Image evidence of the result (outline samples, gradient on / beside the outlines, contrast); None when too few samples.")
+      }, "Image evidence of the result (outline samples, gradient on / beside the outlines, contrast, outlines in "
+         "view and on edges, roofs scored and their median colour contrast); None when too few samples.")
       .def_property_readonly("hypotheses", [](const PyRegistration& r) { return r.reg.hypotheses; })
       .def_property_readonly("photo_regions", [](const PyRegistration& r) {
         py::list l;

@@ -37,6 +37,9 @@ def test_segment_and_register(city):
         assert mvkp.mean_corner_error(r2.homography, city.photo_to_depth, w, h) < 5.0
         assert r2.correspondences.shape[1] == 4 and r2.region_matches
         assert 0.0 <= r2.ambiguity_px <= 5.0  # the answer is determined to the default 5 px
+        e = r2.edge  # the image check of the answer: edges, and the roofs' colours
+        assert e["contrast"] > 0 and e["regions_on_edges"] <= e["regions"]
+        assert e["roof_regions"] >= 0 and (e["roof_contrast"] is None) == (e["roof_regions"] == 0)
     else:
         assert r2.homography is None and r2.reason.startswith("no registration found")
         assert r2.lean_depth_px_per_m is None

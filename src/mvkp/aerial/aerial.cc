@@ -53,11 +53,13 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   }
   using Method = AerialOptions::Method;
   const bool regions = o.method != Method::kOutlines;
-  cv::Mat grey;
+  cv::Mat grey, colour;  // colour: the image check's roofs (edge_evidence.h)
   if (o.image_check || o.method != Method::kRegions) {
     if (photo.channels() == 3) cv::cvtColor(photo, grey, cv::COLOR_BGR2GRAY);
     else grey = photo;
   }
+  // the roofs' colours, small: the segmentation takes `photo`
+  if (o.image_check && photo.channels() == 3) colour = EdgeEvidence::Chroma(photo);
   double photo_ms = tp.ElapsedMs();
 
   Timer td;
@@ -87,7 +89,8 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     EdgeEvidenceOptions eo = o.edge;
     // the lean bound is 0.4 m per metre of height (a wide-angle camera's edge)
     if (o.depth_res_m > 0 && eo.max_lean_px_per_m > 0) eo.max_lean_px_per_m = 0.4 / o.depth_res_m;
-    evidence.emplace(grey, f, out.depth_regions, eo, heights);
+    evidence.emplace(grey, f, out.depth_regions, eo, heights, colour);
+    colour.release();
   }
   if (regions) {
     out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,

@@ -1,6 +1,7 @@
 #include "mvkp/shapes/edge_evidence.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -26,6 +27,10 @@ void EdgeEvidenceOptions::Check() const {
            min_lean_height_spread_m >= 0,
        "EdgeEvidenceOptions: max_lean_px_per_m in [0, 10], min_lean_gain >= 0, min_lean_outlines >= 3, "
        "min_lean_height_spread_m >= 0");
+  need(roof_shrink_px >= 0 && roof_shrink_px <= 10 && roof_ring_px >= 1 && roof_ring_px <= 20 && min_roof_regions >= 1,
+       "EdgeEvidenceOptions: roof_shrink_px in [0, 10], roof_ring_px in [1, 20], min_roof_regions >= 1");
+  need(roof_accept >= 0 && roof_veto >= 0 && roof_veto_below >= 0 && min_contrast_with_roofs > 0,
+       "EdgeEvidenceOptions: roof_accept, roof_veto, roof_veto_below >= 0, min_contrast_with_roofs > 0");
 }
 
 namespace {
@@ -47,8 +52,48 @@ inline cv::Point2d Map(const cv::Matx33d& H, cv::Point2d p) {
 
 }  // namespace
 
+cv::Mat EdgeEvidence::Chroma(const cv::Mat& bgr) {
+  Require(!bgr.empty() && bgr.type() == CV_8UC3, ErrorCode::kInvalidArgument, "EdgeEvidence::Chroma: need 8-bit BGR");
+  // sRGB -> linear, and the CIE Lab curve f(t), as tables (OpenCV's 8-bit Lab
+  // conversion builds tables of several MB on first use)
+  constexpr int kCurve = 4096;
+  static const auto tables = [] {
+    std::pair<std::array<float, 256>, std::array<float, kCurve + 1>> t;
+    for (int i = 0; i < 256; ++i) {
+      const double v = i / 255.0;
+      t.first[size_t(i)] = float(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
+    }
+    for (int i = 0; i <= kCurve; ++i) {
+      const double x = double(i) / kCurve;
+      t.second[size_t(i)] = float(x > 0.008856 ? std::cbrt(x) : 7.787 * x + 16.0 / 116.0);
+    }
+    return t;
+  }();
+  const auto& lin = tables.first;
+  const auto& curve = tables.second;
+  auto f = [&](float x) { return curve[size_t(std::clamp(int(x * kCurve + 0.5f), 0, kCurve))]; };
+  cv::Mat half;
+  cv::resize(bgr, half, cv::Size((bgr.cols + 1) / 2, (bgr.rows + 1) / 2), 0, 0, cv::INTER_AREA);
+  cv::Mat ab(half.size(), CV_8UC2);
+  for (int y = 0; y < half.rows; ++y) {
+    const uchar* p = half.ptr<uchar>(y);
+    uchar* q = ab.ptr<uchar>(y);
+    for (int x = 0; x < half.cols; ++x, p += 3, q += 2) {
+      const float B = lin[p[0]], G = lin[p[1]], R = lin[p[2]];
+      const float X = (0.412453f * R + 0.357580f * G + 0.180423f * B) / 0.950456f;
+      const float Y = 0.212671f * R + 0.715160f * G + 0.072169f * B;
+      const float Z = (0.019334f * R + 0.119193f * G + 0.950227f * B) / 1.088754f;
+      const float fy = f(Y);
+      q[0] = cv::saturate_cast<uchar>(500.f * (f(X) - fy) + 128.f);
+      q[1] = cv::saturate_cast<uchar>(200.f * (fy - f(Z)) + 128.f);
+    }
+  }
+  return ab;
+}
+
 EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& depth_regions,
-                           const EdgeEvidenceOptions& options, const std::vector<float>& heights)
+                           const EdgeEvidenceOptions& options, const std::vector<float>& heights,
+                           const cv::Mat& chroma)
     : opt_(options), photo_scale_(photo_scale) {
   opt_.Check();
   Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
@@ -62,6 +107,17 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
   else g = photo;
   g.convertTo(grey_, CV_32F);
   if (opt_.blur_sigma > 0) cv::GaussianBlur(grey_, grey_, cv::Size(), opt_.blur_sigma);
+  grey8_ = g;
+  if (photo.channels() == 3) chroma_ = Chroma(photo);
+  else if (!chroma.empty()) {
+    Require(chroma.type() == CV_8UC2 && chroma.cols == (photo.cols + 1) / 2 && chroma.rows == (photo.rows + 1) / 2,
+            ErrorCode::kInvalidArgument, "EdgeEvidence: chroma must be the photo's Chroma()");
+    chroma_ = chroma;
+  }
+  outlines_ = depth_regions;
+  outline_h_.assign(depth_regions.size(), 0.f);
+  for (size_t ci = 0; ci < heights.size(); ++ci)
+    outline_h_[ci] = std::isfinite(heights[ci]) ? std::max(0.f, heights[ci]) : 0.f;
 
   // Outline samples every step_px of arc length, with normals from the
   // neighbouring samples (closed contours).
@@ -143,6 +199,114 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offse
   }
   *points = count;
   return count ? sum / count : 0.0;
+}
+
+bool EdgeEvidence::Accepts(const EdgeScore& s) const {
+  if (!s.enough) return false;
+  const bool roofs = s.roof_regions >= opt_.min_roof_regions;
+  if (roofs && opt_.roof_veto > 0 && s.roof_contrast < opt_.roof_veto && s.contrast < opt_.roof_veto_below) return false;
+  if (s.contrast >= opt_.min_contrast) return true;
+  return roofs && opt_.roof_accept > 0 && s.roof_contrast >= opt_.roof_accept &&
+         s.contrast >= opt_.min_contrast_with_roofs;
+}
+
+void EdgeEvidence::ScoreRoofs(const cv::Matx33d& photo_to_depth, cv::Point2d lean, EdgeScore* s) const {
+  s->roof_regions = 0;
+  s->roof_contrast = 0;
+  const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
+  const cv::Matx33d D = S * photo_to_depth.inv();
+  const int W = grey8_.cols, H = grey8_.rows;
+  const int ring = int(std::lround(opt_.roof_ring_px)), shrink = int(std::lround(opt_.roof_shrink_px));
+  const int margin = ring + 3;
+  // every outline in the photo (rounded to px, as drawn), and the mask of them all
+  std::vector<std::vector<cv::Point>> polys(outlines_.size());
+  std::vector<cv::Rect> boxes(outlines_.size());
+  std::vector<char> inside(outlines_.size(), 0);
+  cv::Mat1b all(H, W, uchar(0));
+  const cv::Rect frame(0, 0, W, H);
+  for (size_t r = 0; r < outlines_.size(); ++r) {
+    bool ok = outlines_[r].size() >= 3;
+    for (const cv::Point2f& q : outlines_[r]) {
+      if (!ok) break;
+      const cv::Point2d p = Map(D, cv::Point2d(q) + lean * double(outline_h_[r]));
+      ok = std::isfinite(p.x) && std::isfinite(p.y) && std::abs(p.x) < 1e6 && std::abs(p.y) < 1e6;
+      if (ok) polys[r].emplace_back(int(std::lround(p.x)), int(std::lround(p.y)));
+    }
+    if (!ok) { polys[r].clear(); continue; }
+    boxes[r] = cv::boundingRect(polys[r]);
+    if ((boxes[r] & frame).area() == 0) continue;
+    cv::fillPoly(all, std::vector<std::vector<cv::Point>>{polys[r]}, cv::Scalar(255));
+    inside[r] = boxes[r].x >= margin && boxes[r].y >= margin && boxes[r].br().x <= W - margin &&
+                boxes[r].br().y <= H - margin;
+  }
+  const cv::Mat k_in = cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * shrink + 1, 2 * shrink + 1});
+  const cv::Mat k_ring = cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * (ring + 1) + 1, 2 * (ring + 1) + 1});
+  const cv::Mat k_gap = cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3});
+  // L* of an sRGB grey level, on OpenCV's 8-bit Lab scale (0-255)
+  static const std::array<float, 256> kLightness = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) {
+      const double v = i / 255.0, lin = v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+      const double f = lin > 0.008856 ? std::cbrt(lin) : 7.787 * lin + 16.0 / 116.0;
+      t[size_t(i)] = float((116.0 * f - 16.0) * 255.0 / 100.0);
+    }
+    return t;
+  }();
+  const int ch = chroma_.empty() ? 1 : 3;
+  std::vector<double> roofs;
+  for (size_t r = 0; r < outlines_.size(); ++r) {
+    if (!inside[r]) continue;
+    const cv::Rect roi = cv::Rect(boxes[r].x - margin, boxes[r].y - margin, boxes[r].width + 2 * margin,
+                                  boxes[r].height + 2 * margin) & frame;
+    cv::Mat1b m(roi.size(), uchar(0));
+    std::vector<cv::Point> local;
+    for (const cv::Point& p : polys[r]) local.emplace_back(p.x - roi.x, p.y - roi.y);
+    cv::fillPoly(m, std::vector<std::vector<cv::Point>>{local}, cv::Scalar(255));
+    cv::Mat1b in, out, others;
+    if (shrink > 0) cv::erode(m, in, k_in);
+    else in = m;
+    cv::dilate(m, out, k_ring);
+    cv::dilate(all(roi), others, k_gap);
+    out &= ~others;
+    // mean and variance of the Lab values inside and in the ring
+    double sum[2][3] = {}, sq[2][3] = {};
+    int n[2] = {0, 0};
+    for (int y = 0; y < roi.height; ++y) {
+      const uchar* a = in.ptr<uchar>(y);
+      const uchar* b = out.ptr<uchar>(y);
+      const uchar* g = grey8_.ptr<uchar>(roi.y + y) + roi.x;
+      const uchar* ab = ch == 3 ? chroma_.ptr<uchar>(std::min((roi.y + y) / 2, chroma_.rows - 1)) : nullptr;
+      for (int x = 0; x < roi.width; ++x) {
+        const int which = a[x] ? 0 : b[x] ? 1 : -1;
+        if (which < 0) continue;
+        ++n[which];
+        double v[3] = {kLightness[g[x]], 0, 0};
+        if (ab) {
+          const int cx = std::min((roi.x + x) / 2, chroma_.cols - 1);
+          v[1] = ab[2 * cx], v[2] = ab[2 * cx + 1];
+        }
+        for (int c = 0; c < ch; ++c) sum[which][c] += v[c], sq[which][c] += v[c] * v[c];
+      }
+    }
+    if (n[0] < 4 || n[1] < 8) continue;
+    double d2 = 0, var = 0;
+    for (int c = 0; c < ch; ++c) {
+      const double m0 = sum[0][c] / n[0], m1 = sum[1][c] / n[1];
+      d2 += (m0 - m1) * (m0 - m1);
+      var += std::max(0.0, sq[0][c] / n[0] - m0 * m0) + std::max(0.0, sq[1][c] / n[1] - m1 * m1);
+    }
+    constexpr double kNoiseVar = 4.0;  // 2 grey levels: a flat roof on flat ground is not infinitely clear
+    roofs.push_back(std::sqrt(d2) / std::sqrt(var / 2 + kNoiseVar));
+  }
+  if (roofs.empty()) return;
+  std::nth_element(roofs.begin(), roofs.begin() + roofs.size() / 2, roofs.end());
+  double med = roofs[roofs.size() / 2];
+  if (roofs.size() % 2 == 0) {
+    const double lo = *std::max_element(roofs.begin(), roofs.begin() + roofs.size() / 2);
+    med = 0.5 * (med + lo);
+  }
+  s->roof_regions = int(roofs.size());
+  s->roof_contrast = med;
 }
 
 EdgeScore EdgeEvidence::Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean, int stride) const {

@@ -214,6 +214,31 @@ TEST(EdgeEvidence, RejectsBadInput) {
   EdgeEvidenceOptions o;
   o.offset_px = 1, o.search_px = 2;
   EXPECT_THROW(EdgeEvidence(s.photo, 1.0, s.depth_outlines, o), Error);
+  EdgeEvidenceOptions r;
+  r.roof_ring_px = 0;
+  EXPECT_THROW(EdgeEvidence(s.photo, 1.0, s.depth_outlines, r), Error);
+  cv::Mat grey;
+  cv::cvtColor(s.photo, grey, cv::COLOR_BGR2GRAY);
+  EXPECT_THROW(EdgeEvidence(grey, 1.0, s.depth_outlines, {}, {}, cv::Mat(3, 3, CV_8UC2)), Error);  // not its chroma
+  EXPECT_THROW(EdgeEvidence::Chroma(grey), Error);
+}
+
+TEST(EdgeEvidence, ChromaIsTheLabChromaOfTheHalfSizePhoto) {
+  // reference: OpenCV's 8-bit Lab of the same half-size image
+  cv::Mat bgr(64, 96, CV_8UC3);
+  cv::randu(bgr, cv::Scalar::all(0), cv::Scalar::all(256));
+  const cv::Mat ab = EdgeEvidence::Chroma(bgr);
+  ASSERT_EQ(ab.type(), CV_8UC2);
+  ASSERT_EQ(ab.size(), cv::Size(48, 32));
+  cv::Mat half, lab;
+  cv::resize(bgr, half, ab.size(), 0, 0, cv::INTER_AREA);
+  cv::cvtColor(half, lab, cv::COLOR_BGR2Lab);
+  int worst = 0;
+  for (int y = 0; y < ab.rows; ++y)
+    for (int x = 0; x < ab.cols; ++x)
+      for (int c = 0; c < 2; ++c)
+        worst = std::max(worst, std::abs(int(ab.at<cv::Vec2b>(y, x)[c]) - int(lab.at<cv::Vec3b>(y, x)[c + 1])));
+  EXPECT_LE(worst, 2);
 }
 
 // RegisterContours with image evidence: shapes alone accept from min_regions
@@ -272,6 +297,67 @@ TEST(EdgeEvidence, SinglePairRouteRegistersOneRoofAmongManyOutlines) {
   const EdgeEvidence flat(blank, 1.0, s.depth_outlines);
   const Registration r2 = RegisterContours(one, s.depth_outlines, {}, &flat);
   EXPECT_FALSE(r2.ok);
+}
+
+TEST(EdgeEvidence, RoofsStandApartAtTheRightTransformOnly) {
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const Scene s = MakeScene(seed);
+    const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);
+    EdgeScore right = ev.Evaluate(s.photo_to_depth);
+    ev.ScoreRoofs(s.photo_to_depth, {}, &right);
+    EXPECT_GE(right.roof_regions, 10) << "seed " << seed;
+    EXPECT_GE(right.roof_contrast, 2.0) << "seed " << seed;
+    EXPECT_TRUE(ev.Accepts(right));
+    // far off: the outlines fall on ground and roads
+    for (const cv::Matx33d& C : {cv::Matx33d(1, 0, 140, 0, 1, -90, 0, 0, 1), cv::Matx33d(1, 0, -120, 0, 1, 110, 0, 0, 1),
+                                 cv::Matx33d(0.8, 0, 60, 0, 0.8, 50, 0, 0, 1)}) {
+      const cv::Matx33d W = C * s.photo_to_depth;
+      EdgeScore wrong = ev.Evaluate(W);
+      ev.ScoreRoofs(W, {}, &wrong);
+      EXPECT_GE(wrong.roof_regions, 4) << "seed " << seed;
+      EXPECT_LT(wrong.roof_contrast, 0.9) << "seed " << seed;
+      EXPECT_FALSE(ev.Accepts(wrong)) << "seed " << seed;
+    }
+  }
+}
+
+TEST(EdgeEvidence, RoofsDecideOnlyWhenScoredOverEnoughOutlines) {
+  const Scene s = MakeScene(1);
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);  // defaults: edges 1.8; roofs 4 outlines, 1.5 admits 1.5, veto 0.9
+  EdgeScore e;
+  e.enough = true;
+  e.contrast = 1.6;
+  EXPECT_FALSE(ev.Accepts(e));  // roofs not scored: the edges alone
+  e.roof_regions = 6, e.roof_contrast = 2.0;
+  EXPECT_TRUE(ev.Accepts(e));  // clear roofs admit an edge contrast of 1.6
+  e.roof_contrast = 1.2;
+  EXPECT_FALSE(ev.Accepts(e));
+  e.roof_regions = 3, e.roof_contrast = 2.0;
+  EXPECT_FALSE(ev.Accepts(e));  // too few outlines for a roof verdict
+  e.contrast = 2.0, e.roof_regions = 6, e.roof_contrast = 0.5;
+  EXPECT_FALSE(ev.Accepts(e));  // edges that pass, but no roofs where the outlines are: refused
+  e.roof_regions = 3;
+  EXPECT_TRUE(ev.Accepts(e));
+  e.roof_regions = 6, e.contrast = 3.0;
+  EXPECT_TRUE(ev.Accepts(e));  // decisive edges stand on their own
+  e.enough = false, e.roof_regions = 6, e.roof_contrast = 3.0;
+  EXPECT_FALSE(ev.Accepts(e));
+  EdgeEvidenceOptions off;
+  off.roof_veto = 0, off.roof_accept = 0;
+  const EdgeEvidence ev_off(s.photo, 1.0, s.depth_outlines, off);
+  EdgeScore f;
+  f.enough = true, f.contrast = 3.0, f.roof_regions = 6, f.roof_contrast = 0.5;
+  EXPECT_TRUE(ev_off.Accepts(f));
+  f.contrast = 1.6, f.roof_contrast = 3.0;
+  EXPECT_FALSE(ev_off.Accepts(f));
+  // a grey photo: lightness only, the same verdicts at the right transform
+  cv::Mat grey;
+  cv::cvtColor(s.photo, grey, cv::COLOR_BGR2GRAY);
+  const EdgeEvidence ev_grey(grey, 1.0, s.depth_outlines);
+  EdgeScore g = ev_grey.Evaluate(s.photo_to_depth);
+  ev_grey.ScoreRoofs(s.photo_to_depth, {}, &g);
+  EXPECT_GE(g.roof_regions, 10);
+  EXPECT_GE(g.roof_contrast, 2.0);
 }
 
 }  // namespace

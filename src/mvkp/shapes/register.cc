@@ -475,6 +475,22 @@ static double PoseGap(const cv::Matx33d& A, const cv::Matx33d& B, const cv::Rect
 
 constexpr double kLeanAtBound = 0.9;  // share of EdgeEvidenceOptions::max_lean_px_per_m
 
+// The image check of a transform (edge_evidence.h). The roofs are scored
+// only when the edges alone fall short: they may then admit it.
+static bool ImagePasses(const EdgeEvidence& ev, const cv::Matx33d& T, cv::Point2d lean, EdgeScore* e) {
+  if (e->enough && e->contrast < ev.options().min_contrast) ev.ScoreRoofs(T, lean, e);
+  return ev.Accepts(*e);
+}
+
+// The roofs of a final answer (with its lean): "" when they do not refuse it,
+// else why. Fills e's roof fields either way.
+static std::string RoofVeto(const EdgeEvidence& ev, const cv::Matx33d& T, cv::Point2d lean, EdgeScore* e) {
+  ev.ScoreRoofs(T, lean, e);
+  if (ev.Accepts(*e)) return {};
+  return cv::format("its outlines do not set roofs apart from the ground (roof contrast %.2f < %.2f over %d outlines)",
+                    e->roof_contrast, ev.options().roof_veto, e->roof_regions);
+}
+
 // An answer refined with the photo's lean (T3, lean) replaces the accepted
 // one, whose image check gave `accepted`, when it passes the same checks:
 // outlines on edges (no fewer), the perspective bound, a proper transform
@@ -488,7 +504,7 @@ static bool LeanAnswerPasses(const EdgeEvidence& ev, const cv::Matx33d& T3, cv::
   if (std::hypot(lean.x, lean.y) >= kLeanAtBound * ev.options().max_lean_px_per_m) return false;
   *e3 = ev.Evaluate(T3, lean);
   double scale, rot;
-  return ev.Accepts(*e3) && e3->regions_on_edges >= accepted.regions_on_edges &&
+  return ImagePasses(ev, T3, lean, e3) && e3->regions_on_edges >= accepted.regions_on_edges &&
          (opt.max_perspective <= 0 || PerspectiveAmount(T3, extent) <= opt.max_perspective) &&
          LocalScaleRotation(T3, at, &scale, &rot);
 }
@@ -588,7 +604,7 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   const bool persp = opt.model == RegistrationOptions::Model::kPerspective || opt.model == RegistrationOptions::Model::kAuto;
   cv::Matx33d T = ev.Refine(best.T, persp);
   EdgeScore e = ev.Evaluate(T);
-  if (!ev.Accepts(e) || e.regions_on_edges < opt.single_pair_min_on_edges * e.regions)
+  if (!ImagePasses(ev, T, {}, &e) || e.regions_on_edges < opt.single_pair_min_on_edges * e.regions)
     return what + cv::format("; refined outlines not on edges (contrast %.2f, %d of %d)", e.contrast, e.regions_on_edges,
                              e.regions);
   if (opt.max_perspective > 0 && PerspectiveAmount(T, extent) > opt.max_perspective)
@@ -602,6 +618,10 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   EdgeScore e3;
   if (LeanAnswerPasses(ev, T3, lean, e, opt, extent, photo[hyps[best.h].p].centroid, &e3))
     T = T3, e = e3, res->lean_px_per_m = lean;
+  if (const std::string veto = RoofVeto(ev, T, res->lean_px_per_m, &e); !veto.empty()) {
+    res->lean_px_per_m = {};
+    return what + "; " + veto;
+  }
   if (persp && opt.ambiguity_px > 0) {
     res->ambiguity_px = AmbiguityGap(ev, T, res->lean_px_per_m, opt, extent);
     if (res->ambiguity_px > opt.ambiguity_px) {
@@ -924,15 +944,22 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       // a right but imprecise fit (few region pairs) puts the outlines beside
       // the edges: judge it after a small similarity correction (which cannot
       // put a wrong set of outlines on edges)
-      if (es.enough && !evidence->Accepts(es) && opt.edge_refine) {
+      // (the edges first, before and after the correction; the roofs only
+      // when the edges fall short of both, at the corrected transform)
+      bool passes = evidence->Accepts(es);
+      if (es.enough && !passes && opt.edge_refine) {
         const cv::Matx33d T1 = evidence->Refine(f.T, false, /*sharp=*/false);
-        const EdgeScore es1 = evidence->Evaluate(T1);
-        if (evidence->Accepts(es1)) {
-          es = es1, f.T = T1;
+        EdgeScore es1 = evidence->Evaluate(T1);
+        if (evidence->Accepts(es1) || ImagePasses(*evidence, T1, {}, &es1)) {
+          es = es1, f.T = T1, passes = true;
           verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+        } else {
+          es.roof_regions = es1.roof_regions, es.roof_contrast = es1.roof_contrast;  // for the reason
         }
+      } else if (es.enough && !passes) {
+        passes = ImagePasses(*evidence, f.T, {}, &es);
       }
-      image_ok = consistent && evidence->Accepts(es) && f.rms <= opt.edge_rms_factor * max_rms;
+      image_ok = consistent && passes && f.rms <= opt.edge_rms_factor * max_rms;
     }
     res.edge = es;
     // With the image check on, every answer needs it: shapes alone accepted
@@ -948,8 +975,10 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       if (!consistent || !es.enough || f.rms > opt.edge_rms_factor * max_rms)
         return cv::format("best consistent set fails the checks (%d region pairs, ratio %.2f, RMS %.2f px > %.2f)",
                           int(pairs.size()), ratio, shape_fit.rms, max_rms);
-      return cv::format("best consistent set fails the image check (%d region pairs, outline edge contrast %.2f < %.2f)",
-                        int(pairs.size()), es.contrast, evidence->options().min_contrast);
+      return cv::format("best consistent set fails the image check (%d region pairs, outline edge contrast %.2f < %.2f",
+                        int(pairs.size()), es.contrast, evidence->options().min_contrast) +
+             (es.roof_regions > 0 ? cv::format(", roof contrast %.2f over %d outlines)", es.roof_contrast, es.roof_regions)
+                                  : std::string(")"));
     }
     if (!image_ok) {
       f = shape_fit;  // accepted on shapes alone: keep their fit
@@ -970,13 +999,14 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       // of a few clustered regions extrapolated): most outlines in view
       // must lie on edges. The photo's edges did align globally (the image
       // route), so this is evidence against the set even if its shapes pass.
+      const bool refined_passes = ImagePasses(*evidence, f.T, {}, &res.edge);
       const EdgeScore& e = res.edge;
       if (e.regions >= 8 && e.regions_on_edges < evidence->options().min_regions_on_edges * e.regions)
         return cv::format("best consistent set fits only part of the photo (%d of %d outlines in view on edges)",
                           e.regions_on_edges, e.regions);
       // The refinement may leave the basin it was accepted in (a strong
       // perspective pulled toward other edges): judge the transform given.
-      if (!evidence->Accepts(e))
+      if (!refined_passes)
         return cv::format("best consistent set's refined outlines are not on photo edges (contrast %.2f < %.2f)",
                           e.contrast, evidence->options().min_contrast);
       // The photo's lean (edge_evidence.h), last: the checks judge the
@@ -1008,6 +1038,13 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
                                         photo[pairs[0].first].centroid, &e3)) {
       f.T = lean_answer->T, res.edge = e3, res.lean_px_per_m = lean_answer->lean;
       verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
+    }
+    if (image_ok) {
+      const std::string veto = RoofVeto(*evidence, f.T, res.lean_px_per_m, &res.edge);
+      if (!veto.empty()) {
+        res.lean_px_per_m = {};
+        return "best consistent set: " + veto;
+      }
     }
     if (image_ok && opt.edge_refine && opt.ambiguity_px > 0 && f.m == Model::kPerspective) {
       res.ambiguity_px = AmbiguityGap(*evidence, f.T, res.lean_px_per_m, opt, photo_extent);
