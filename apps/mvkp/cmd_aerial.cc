@@ -366,6 +366,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "lies this far away on average over the outlines in view (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1000.0));
+  c->add_option("--max-anisotropy", a->opt.max_anisotropy,
+                "refuse a transform that stretches the photo along one axis this many times more than along "
+                "the other, at its centre (nadir photos: square pixels; 0: off)")
+      ->capture_default_str()
+      ->check(CLI::Number);
   c->add_option("--min-edge-contrast", a->edge.min_contrast,
                 "image check: depth outlines must lie on photo edges this much more than beside them (0: off)")
       ->capture_default_str()

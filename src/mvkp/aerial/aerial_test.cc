@@ -148,10 +148,16 @@ TEST(Aerial, LookAlikeHousesAreRefusedWithoutImageEvidence) {
   shapes.registration.require_image_evidence = false;
   shapes.depth.min_width_px = 0;
   shapes.depth.lcc_slope = 0;  // and without the pitched roofs (fewer houses, as then)
+  shapes.registration.max_anisotropy = 0;  // and without the square-pixel check
   const AerialRegistration w = RegisterAerial(c.depth, c.photo, shapes);
   ASSERT_TRUE(w.registration.ok) << w.registration.reason;
   EXPECT_GT(CornerError(c, w.registration.photo_to_depth), 50.0);
   EXPECT_LT(w.registration.edge.contrast, 1.8);
+  // That squeeze stretches the photo 1.37x more along one axis than the
+  // other: the square-pixel check alone refuses it too.
+  shapes.registration.max_anisotropy = RegistrationOptions{}.max_anisotropy;
+  const AerialRegistration s2 = RegisterAerial(c.depth, c.photo, shapes);
+  if (s2.registration.ok) EXPECT_LT(CornerError(c, s2.registration.photo_to_depth), 5.0) << s2.registration.reason;
 }
 
 // A dense town whose first consistent set of region pairs is right by its

@@ -28,6 +28,8 @@ void RegistrationOptions::Check() const {
        "RegistrationOptions: inlier_px > 0, inlier_fraction in (0, 1]");
   need(max_area_ratio >= 1, "RegistrationOptions.max_area_ratio must be >= 1");
   need(max_perspective >= 0 && std::isfinite(max_perspective), "RegistrationOptions.max_perspective must be >= 0");
+  need(max_anisotropy == 0 || (max_anisotropy >= 1 && std::isfinite(max_anisotropy)),
+       "RegistrationOptions.max_anisotropy must be 0 (off) or >= 1");
   need(min_regions >= 2 && min_regions_with_evidence >= 2,
        "RegistrationOptions: min_regions and min_regions_with_evidence must be >= 2");
   need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1 && min_inlier_ratio_with_evidence >= 0 &&
@@ -462,6 +464,38 @@ static double PerspectiveAmount(const cv::Matx33d& T, const cv::Rect2d& r) {
   return p;
 }
 
+// Ratio of the larger to the smaller singular value of T's Jacobian at the
+// centre of `r`: how much more T stretches one photo axis than the other
+// there (1 for a similarity; infinity when degenerate).
+static double Anisotropy(const cv::Matx33d& T, const cv::Rect2d& r) {
+  const double x = r.x + r.width / 2, y = r.y + r.height / 2;
+  const double w = T(2, 0) * x + T(2, 1) * y + T(2, 2);
+  if (!(std::abs(w) > 1e-12)) return std::numeric_limits<double>::infinity();
+  const double u = (T(0, 0) * x + T(0, 1) * y + T(0, 2)) / w, v = (T(1, 0) * x + T(1, 1) * y + T(1, 2)) / w;
+  const cv::Matx22d J((T(0, 0) - u * T(2, 0)) / w, (T(0, 1) - u * T(2, 1)) / w, (T(1, 0) - v * T(2, 0)) / w,
+                      (T(1, 1) - v * T(2, 1)) / w);
+  cv::Vec2d sv;
+  cv::SVD::compute(J, sv, cv::SVD::NO_UV);
+  return sv[1] > 1e-12 ? sv[0] / sv[1] : std::numeric_limits<double>::infinity();
+}
+
+// The nadir-photo shape checks (max_perspective, max_anisotropy): "" or why not.
+static std::string NadirShape(const cv::Matx33d& T, const cv::Rect2d& r, const RegistrationOptions& opt) {
+  if (opt.max_perspective > 0) {
+    const double p = PerspectiveAmount(T, r);
+    if (p > opt.max_perspective)
+      return cv::format("needs a steep perspective (divisor changes by %.2f across the photo > %.2f)", p,
+                        opt.max_perspective);
+  }
+  if (opt.max_anisotropy > 0) {
+    const double a = Anisotropy(T, r);
+    if (a > opt.max_anisotropy)
+      return cv::format("stretches the photo %.2f times more along one axis than the other (> %.2f)", a,
+                        opt.max_anisotropy);
+  }
+  return {};
+}
+
 // Largest distance, depth px, between where two transforms put the corners of `r`.
 static double PoseGap(const cv::Matx33d& A, const cv::Matx33d& B, const cv::Rect2d& r) {
   double g = 0;
@@ -505,7 +539,7 @@ static bool LeanAnswerPasses(const EdgeEvidence& ev, const cv::Matx33d& T3, cv::
   *e3 = ev.Evaluate(T3, lean);
   double scale, rot;
   return ImagePasses(ev, T3, lean, e3) && e3->regions_on_edges >= accepted.regions_on_edges &&
-         (opt.max_perspective <= 0 || PerspectiveAmount(T3, extent) <= opt.max_perspective) &&
+         NadirShape(T3, extent, opt).empty() &&
          LocalScaleRotation(T3, at, &scale, &rot);
 }
 
@@ -607,8 +641,7 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   if (!ImagePasses(ev, T, {}, &e) || e.regions_on_edges < opt.single_pair_min_on_edges * e.regions)
     return what + cv::format("; refined outlines not on edges (contrast %.2f, %d of %d)", e.contrast, e.regions_on_edges,
                              e.regions);
-  if (opt.max_perspective > 0 && PerspectiveAmount(T, extent) > opt.max_perspective)
-    return what + "; needs a steep perspective";
+  if (const std::string shape = NadirShape(T, extent, opt); !shape.empty()) return what + "; " + shape;
   double scale, rot;
   if (!LocalScaleRotation(T, photo[hyps[best.h].p].centroid, &scale, &rot))
     return what + "; refined transform is degenerate or reflecting";
@@ -1020,13 +1053,10 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
                                             : evidence->Refine(start_T, persp, true, nullptr, &lean);
       lean_answer = LeanAnswer{T3, lean};
     }
-    // A nadir photo: the projective divisor changes little across it.
-    if (opt.max_perspective > 0) {
-      const double p = PerspectiveAmount(f.T, photo_extent);
-      if (p > opt.max_perspective)
-        return cv::format("best consistent set needs a steep perspective (divisor changes by %.2f across the "
-                          "photo > %.2f)", p, opt.max_perspective);
-    }
+    // A nadir photo: the projective divisor changes little across it, and
+    // its pixels are square.
+    if (const std::string shape = NadirShape(f.T, photo_extent, opt); !shape.empty())
+      return "best consistent set " + shape;
     double scale, rot;
     if (!LocalScaleRotation(f.T, photo[pairs[0].first].centroid, &scale, &rot))
       return "refined transform is degenerate or reflecting";

@@ -82,6 +82,11 @@ struct RegistrationOptions {
   double max_perspective = 0.25;       // refuse a transform whose projective divisor changes by more
                                       //   than this across the photo's regions (a nadir photo's changes
                                       //   by a few per cent; wrong sets fitted 0.3+); 0: no check
+  double max_anisotropy = 1.15;       // refuse a transform that stretches the photo more along one
+                                      //   axis than the other, at the centre of its regions, by more
+                                      //   than this ratio (square pixels seen from above: 1; a camera
+                                      //   30 deg off nadir: 1.155; non-square GeoTIFF pixels need
+                                      //   more); 0: no check
   bool require_image_evidence = true; // with image evidence given: accept only through it (shapes
                                       //   alone gave answers 120-850 px off on towns of small
                                       //   look-alike houses); false: shapes alone may also accept

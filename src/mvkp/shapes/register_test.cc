@@ -235,6 +235,31 @@ TEST(Register, SyntheticCities) {
   EXPECT_LT(ms_sum / trials, 1000.0);
 }
 
+TEST(Register, AStretchedPhotoIsNotANadirPhoto) {
+  // The same scenes with the photo stretched 1.3x along one axis: no nadir
+  // photo of flat ground looks like that (square pixels seen from above),
+  // so the default refuses what max_anisotropy = 0 accepts.
+  int accepted_off = 0, accepted_on = 0, refused_for_it = 0;
+  for (int t = 0; t < 12; ++t) {
+    Scene sc = MakeScene(1000 + t);
+    for (auto& c : sc.photo)
+      for (auto& q : c) q.x *= 1.3f;
+    RegistrationOptions off;
+    off.max_anisotropy = 0;
+    const Registration a = RegisterContours(sc.photo, sc.depth, off);
+    const Registration b = RegisterContours(sc.photo, sc.depth);
+    accepted_off += a.ok, accepted_on += b.ok;
+    refused_for_it += !b.ok && b.reason.find("stretches the photo") != std::string::npos;
+    if (a.ok) std::printf("trial %d, stretched: %s\n", t, b.ok ? "registered" : b.reason.c_str());
+  }
+  EXPECT_GE(accepted_off, 3);
+  EXPECT_EQ(accepted_on, 0);
+  EXPECT_GE(refused_for_it, 3);
+  RegistrationOptions bad;
+  bad.max_anisotropy = 0.5;
+  EXPECT_THROW(bad.Check(), Error);
+}
+
 TEST(Register, DifferentCityIsRejected) {
   const int trials = 40;
   int rejected = 0;
