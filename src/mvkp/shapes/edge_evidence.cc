@@ -50,6 +50,10 @@ inline cv::Point2d Map(const cv::Matx33d& H, cv::Point2d p) {
   return {(H(0, 0) * p.x + H(0, 1) * p.y + H(0, 2)) * iw, (H(1, 0) * p.x + H(1, 1) * p.y + H(1, 2)) * iw};
 }
 
+// sRGB grey level (0-1) -> linear light, and the CIE Lab curve f(t).
+inline double SrgbToLinear(double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); }
+inline double LabCurve(double t) { return t > 0.008856 ? std::cbrt(t) : 7.787 * t + 16.0 / 116.0; }
+
 }  // namespace
 
 cv::Mat EdgeEvidence::Chroma(const cv::Mat& bgr) {
@@ -59,14 +63,8 @@ cv::Mat EdgeEvidence::Chroma(const cv::Mat& bgr) {
   constexpr int kCurve = 4096;
   static const auto tables = [] {
     std::pair<std::array<float, 256>, std::array<float, kCurve + 1>> t;
-    for (int i = 0; i < 256; ++i) {
-      const double v = i / 255.0;
-      t.first[size_t(i)] = float(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
-    }
-    for (int i = 0; i <= kCurve; ++i) {
-      const double x = double(i) / kCurve;
-      t.second[size_t(i)] = float(x > 0.008856 ? std::cbrt(x) : 7.787 * x + 16.0 / 116.0);
-    }
+    for (int i = 0; i < 256; ++i) t.first[size_t(i)] = float(SrgbToLinear(i / 255.0));
+    for (int i = 0; i <= kCurve; ++i) t.second[size_t(i)] = float(LabCurve(double(i) / kCurve));
     return t;
   }();
   const auto& lin = tables.first;
@@ -245,11 +243,8 @@ void EdgeEvidence::ScoreRoofs(const cv::Matx33d& photo_to_depth, cv::Point2d lea
   // L* of an sRGB grey level, on OpenCV's 8-bit Lab scale (0-255)
   static const std::array<float, 256> kLightness = [] {
     std::array<float, 256> t{};
-    for (int i = 0; i < 256; ++i) {
-      const double v = i / 255.0, lin = v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
-      const double f = lin > 0.008856 ? std::cbrt(lin) : 7.787 * lin + 16.0 / 116.0;
-      t[size_t(i)] = float((116.0 * f - 16.0) * 255.0 / 100.0);
-    }
+    for (int i = 0; i < 256; ++i)
+      t[size_t(i)] = float((116.0 * LabCurve(SrgbToLinear(i / 255.0)) - 16.0) * 255.0 / 100.0);
     return t;
   }();
   const int ch = chroma_.empty() ? 1 : 3;
