@@ -115,6 +115,16 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   so.perspective = o.registration.model == RegistrationOptions::Model::kAuto ||
                    o.registration.model == RegistrationOptions::Model::kPerspective;
   out.outline = SearchOutlines(grey, f, out.depth_regions, so, evidence ? &*evidence : nullptr);
+  // A nadir photo's shape, as on the region routes: a pose found among few
+  // outlines can tilt and stretch the photo onto other ground (issue 21: a
+  // photo of other ground at perspective 0.40, anisotropy 1.58).
+  if (out.outline.ok) {
+    const cv::Rect2d extent(-0.5, -0.5, grey.cols / f, grey.rows / f);  // full-size photo px
+    if (const std::string shape = NadirShape(out.outline.photo_to_depth, extent, o.registration); !shape.empty()) {
+      out.outline.ok = false;
+      out.outline.reason = "no registration found: " + out.outline.reason + "; its pose " + shape;
+    }
+  }
   out.outline_search_ran = true;
   out.outline_search_ms = ts.ElapsedMs();
   grey.release();

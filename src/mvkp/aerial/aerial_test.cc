@@ -104,6 +104,35 @@ TEST(Aerial, OutlineSearchRefusesOtherGround) {
   }
 }
 
+// Issue 21 (fresh seed 107, small tiles): a photo of other ground where the
+// outline search found a pose that puts 3 outlines on edges by tilting and
+// stretching the photo (divisor change 0.40, anisotropy 1.58). Every route
+// now applies the nadir-shape checks, so it is refused. (The scene of
+// `mvkp synth-city --style dense --width 200 --height 200 --buildings 5
+// --trees 4 --no-overlap --seed 1107003322`; another compiler's rounding
+// draws another scene, which must be refused as well.)
+TEST(Aerial, OutlineSearchPosesHaveANadirShape) {
+  CityOptions o;
+  o.width = o.height = 200;
+  o.buildings = 5;
+  o.trees = 4;
+  o.style = "dense";
+  o.overlap = false;
+  const City c = MakeCity(o, 1107003322u);
+  const AerialRegistration r = RegisterAerial(c.depth, c.photo);
+  EXPECT_FALSE(r.registration.ok) << "other ground registered (" << r.registration.reason << ")";
+  EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
+  // the public check itself: a similarity passes; a stretch or a steep tilt does not
+  const cv::Rect2d extent(0, 0, 800, 600);
+  const RegistrationOptions ro;
+  EXPECT_EQ(NadirShape(cv::Matx33d(0.5, -0.2, 10, 0.2, 0.5, 20, 0, 0, 1), extent, ro), "");
+  EXPECT_NE(NadirShape(cv::Matx33d(0.7, 0, 0, 0, 0.5, 0, 0, 0, 1), extent, ro).find("stretches"), std::string::npos);
+  EXPECT_NE(NadirShape(cv::Matx33d(1, 0, 0, 0, 1, 0, 1e-3, 1e-3, 1), extent, ro).find("perspective"), std::string::npos);
+  RegistrationOptions off;
+  off.max_anisotropy = off.max_perspective = 0;
+  EXPECT_EQ(NadirShape(cv::Matx33d(0.7, 0, 0, 0, 0.5, 0, 0, 0, 1), extent, off), "");
+}
+
 // Photo contours come back in full-size photo px: a photo upscaled 2x
 // (nearest) and segmented at the original size gives the original regions, at
 // twice the coordinates (pixel centres at integers: x' = 2x + 0.5).

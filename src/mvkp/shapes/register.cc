@@ -479,8 +479,7 @@ static double Anisotropy(const cv::Matx33d& T, const cv::Rect2d& r) {
   return sv[1] > 1e-12 ? sv[0] / sv[1] : std::numeric_limits<double>::infinity();
 }
 
-// The nadir-photo shape checks (max_perspective, max_anisotropy): "" or why not.
-static std::string NadirShape(const cv::Matx33d& T, const cv::Rect2d& r, const RegistrationOptions& opt) {
+std::string NadirShape(const cv::Matx33d& T, const cv::Rect2d& r, const RegistrationOptions& opt) {
   if (opt.max_perspective > 0) {
     const double p = PerspectiveAmount(T, r);
     if (p > opt.max_perspective)

@@ -157,6 +157,13 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions,
                               const RegistrationOptions& options = {},
                               const EdgeEvidence* evidence = nullptr);
 
+// The nadir-photo shape checks of a photo -> depth transform over
+// `photo_extent` (photo px): max_perspective and max_anisotropy of
+// `options`. "" when it passes, else why. Every route applies them
+// (RegisterContours; the outline search in aerial.h).
+std::string NadirShape(const cv::Matx33d& photo_to_depth, const cv::Rect2d& photo_extent,
+                       const RegistrationOptions& options);
+
 // Applies a 3x3 transform to points (perspective division).
 Contour TransformPoints(const cv::Matx33d& T, const Contour& points);
 
