@@ -396,6 +396,9 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_flag_callback("--no-lean", [a] { a->edge.max_lean_px_per_m = 0; },
                        "do not estimate the photo's lean (roofs displaced by height x lean in a conventional "
                        "orthophoto); the answer then maps the mean roof");
+  c->add_flag("!--no-joint-lean", a->opt.joint_lean_fit,
+              "estimate the lean from the lean-free fit only (no second start from the region pairs refitted "
+              "with the lean)");
   c->add_flag("!--no-single-pair", a->opt.single_pair_route,
               "no single-pair route (one region pair's transform judged by the image check alone, when no "
               "consistent set of region pairs passes)");

@@ -165,6 +165,8 @@ class EdgeEvidence {
 
   const EdgeEvidenceOptions& options() const { return opt_; }
   bool has_heights() const { return has_heights_; }
+  // The height (metres above the ground) of depth outline `i` as given (0 without heights).
+  float height(size_t i) const { return i < outline_h_.size() ? outline_h_[i] : 0.f; }
   double reference_height() const { return ref_height_; }  // lean steps pivot about it (median sample height, m)
 
  private:

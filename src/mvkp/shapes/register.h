@@ -79,6 +79,10 @@ struct RegistrationOptions {
   double edge_rms_factor = 2.0;       // with image evidence (EdgeEvidence): max RMS = this * the
                                       //   shape-only bound, since the outlines-on-edges test decides
   bool edge_refine = true;            // with image evidence: snap the outlines onto the photo edges
+  bool joint_lean_fit = true;         // ... and also refine the lean from the region pairs refitted
+                                      //   with it (an affine + the lean by least squares)
+  double joint_lean_gain = 0.15;      // ... which replaces the first lean answer when its edge
+                                      //   contrast is this share higher
   double max_perspective = 0.25;       // refuse a transform whose projective divisor changes by more
                                       //   than this across the photo's regions (a nadir photo's changes
                                       //   by a few per cent; wrong sets fitted 0.3+); 0: no check

@@ -258,6 +258,9 @@ TEST(Register, AStretchedPhotoIsNotANadirPhoto) {
   RegistrationOptions bad;
   bad.max_anisotropy = 0.5;
   EXPECT_THROW(bad.Check(), Error);
+  RegistrationOptions bad_gain;
+  bad_gain.joint_lean_gain = -0.1;
+  EXPECT_THROW(bad_gain.Check(), Error);
 }
 
 TEST(Register, DifferentCityIsRejected) {
