@@ -153,7 +153,8 @@ struct Registration {
 };
 
 // `evidence` (optional, not owned): the photo and all depth outlines (see
-// edge_evidence.h). With it, a candidate needs outlines on photo edges
+// edge_evidence.h): `depth_regions` themselves, in the same order, since
+// their heights there give the lean (joint_lean_fit). With it, a candidate needs outlines on photo edges
 // (EdgeEvidence::Accepts) but may fit the region shapes more loosely
 // (edge_rms_factor), and the result is snapped onto the edges (edge_refine).
 Registration RegisterContours(const std::vector<Contour>& photo_regions,
