@@ -136,6 +136,14 @@ TEST(EdgeEvidence, RefineOutwardFixesExtrapolation) {
   EXPECT_GE(e.regions_on_edges, e.regions - 1);
 }
 
+// The footprint of a roof outline h metres high in a photo leaning by `lean`
+// (depth px per metre): the roof shows h * lean from it.
+Contour Footprint(const Contour& roof, float h, cv::Point2d lean) {
+  Contour f;
+  for (const auto& q : roof) f.push_back(q - cv::Point2f(float(lean.x * h), float(lean.y * h)));
+  return f;
+}
+
 // A conventional orthophoto: each roof shows h * lean from its footprint.
 // A transform fitted to the roofs carries the mean displacement; refining
 // with the heights recovers the lean and the ground mapping.
@@ -151,9 +159,7 @@ TEST(EdgeEvidence, RefineEstimatesTheLeanOfAConventionalOrthophoto) {
     const float h = float(5 + 35 * U(rng));
     heights.push_back(h);
     mean_h += h / double(s.depth_outlines.size());
-    Contour f;
-    for (const auto& q : roof) f.push_back(q - cv::Point2f(float(lean.x * h), float(lean.y * h)));
-    footprints.push_back(f);
+    footprints.push_back(Footprint(roof, h, lean));
   }
   // the roof fit: the ground mapping shifted by the mean roof displacement
   const cv::Matx33d roof_fit = cv::Matx33d(1, 0, -mean_h * lean.x, 0, 1, -mean_h * lean.y, 0, 0, 1) * s.photo_to_depth;
@@ -298,9 +304,7 @@ TEST(EdgeEvidence, RegistrationRefitsThePairsWithTheLean) {
     // make the lean an affine map: the ground then cannot be told)
     const float h = std::clamp(5.f + 25.f * (c.x - 150.f) / 500.f + 10.f * float(U(rng)), 5.f, 40.f);
     heights.push_back(h);
-    Contour f;
-    for (const auto& q : roof) f.push_back(q - cv::Point2f(float(lean.x * h), float(lean.y * h)));
-    footprints.push_back(f);
+    footprints.push_back(Footprint(roof, h, lean));
     photo_roofs.push_back(TransformPoints(s.photo_to_depth.inv(), roof));
   }
   const EdgeEvidence ev(s.photo, 1.0, footprints, {}, heights);
