@@ -139,6 +139,8 @@ struct RegisterArgs {
   bool json = false;
   double res_m = 0;
   int photo_max_side = 1200;
+  int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
+  int outline_max_side = AerialOptions{}.outline_max_side;
   RegistrationOptions opt;
   EdgeEvidenceOptions edge;
 };
@@ -204,6 +206,8 @@ Json RegisterCompute(RegisterArgs& a) {
                 : a.method == "outlines" ? AerialOptions::Method::kOutlines
                                          : AerialOptions::Method::kAuto;
     ao.outline.min_confidence = a.min_confidence;
+    ao.auto_outline_max_regions = a.outline_max_regions;
+    ao.outline_max_side = a.outline_max_side;
     ao.photo_res_m = img.res_m;
     ao.depth_res_m = d.res_m;
     const cv::Size photo_size = img.bgr.size(), depth_size = d.z.size();
@@ -241,6 +245,7 @@ Json RegisterCompute(RegisterArgs& a) {
       out["outline_search"] = {{"ok", os.ok},           {"confidence", os.confidence}, {"score", os.score},
                                {"runner_up", os.runner_up}, {"coverage", os.coverage},   {"poses", os.poses},
                                {"edge_contrast", os.edge.enough ? Json(os.edge.contrast) : Json(nullptr)},
+                               {"ambiguity_px", os.ambiguity_px},
                                {"time_ms", os.ms},      {"reason", os.reason}};
       Json h = Json::array();  // its best pose, accepted or not (for analysis)
       for (int r = 0; r < 3; ++r) h.push_back({os.photo_to_depth(r, 0), os.photo_to_depth(r, 1), os.photo_to_depth(r, 2)});
@@ -352,6 +357,14 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_option("--min-confidence", a->min_confidence, "outline search: confidence needed to accept")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
+  c->add_option("--outline-max-regions", a->outline_max_regions,
+                "auto: run the outline search only on depths with at most this many building regions (0: any)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000000));
+  c->add_option("--outline-max-side", a->outline_max_side,
+                "outline search: the side of the photo copy it searches, px (0: the working photo; else >= 64)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 20000));
   c->add_flag("--principal-directions", a->opt.use_principal_directions,
               "try rotations from the scenes' principal directions first (thesis 7.2.4; falls back)");
   c->add_option("--seed", a->opt.seed, "hypothesis order seed")->capture_default_str();

@@ -13,6 +13,14 @@ namespace mvkp {
 
 void AerialOptions::Check() const {
   Require(photo_max_side >= 0, ErrorCode::kInvalidArgument, "AerialOptions.photo_max_side must be >= 0");
+  Require(outline_max_side == 0 || outline_max_side >= 64, ErrorCode::kInvalidArgument,
+          "AerialOptions.outline_max_side must be 0 or >= 64");
+  Require(auto_outline_max_regions >= 0, ErrorCode::kInvalidArgument,
+          "AerialOptions.auto_outline_max_regions must be >= 0");
+  Require(large_tile_regions >= 0 && large_tile_template_radius >= 8 && large_tile_min_on_edges >= 0 &&
+              large_tile_min_on_edges <= 1,
+          ErrorCode::kInvalidArgument,
+          "AerialOptions: large_tile_regions >= 0, large_tile_template_radius >= 8, large_tile_min_on_edges in [0, 1]");
   depth.Check();
   optical.Check();
   edge.Check();
@@ -106,28 +114,59 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     }
   }
   if (o.method == Method::kRegions) return out;
-  if (o.method == Method::kAuto && int(out.depth_regions.size()) > o.auto_outline_max_regions) return out;
+  if (o.method == Method::kAuto && o.auto_outline_max_regions > 0 &&
+      int(out.depth_regions.size()) > o.auto_outline_max_regions)
+    return out;
   // The outline search: no photo segmentation, the depth outlines against
   // the photo's oriented edges (outline_search.h).
   Timer ts;
   OutlineSearchOptions so = o.outline;
+  // Large tiles (beyond the depths the search was built on): a coarser
+  // template and a clearer majority of outlines on edges (aerial.h).
+  if (o.large_tile_regions > 0 && int(out.depth_regions.size()) > o.large_tile_regions) {
+    so.max_template_radius = std::min(so.max_template_radius, o.large_tile_template_radius);
+    so.min_on_edges = std::max(so.min_on_edges, o.large_tile_min_on_edges);
+  }
   if (o.photo_res_m > 0 && o.depth_res_m > 0 && so.scale_hint <= 0) so.scale_hint = o.photo_res_m / o.depth_res_m;
   so.perspective = o.registration.model == RegistrationOptions::Model::kAuto ||
                    o.registration.model == RegistrationOptions::Model::kPerspective;
+  const cv::Rect2d extent(-0.5, -0.5, grey.cols / f, grey.rows / f);  // full-size photo px
+  if (o.outline_max_side > 0 && std::max(grey.cols, grey.rows) > o.outline_max_side) {
+    // a small copy for the search (the image check holds the working photo)
+    const double g = double(o.outline_max_side) / std::max(grey.cols, grey.rows);
+    cv::Mat small;
+    cv::resize(grey, small, cv::Size(), g, g, cv::INTER_AREA);
+    grey.release();
+    grey = std::move(small);
+    f *= g;
+  }
   out.outline = SearchOutlines(grey, f, out.depth_regions, so, evidence ? &*evidence : nullptr);
+  grey.release();
   // A nadir photo's shape, as on the region routes: a pose found among few
   // outlines can tilt and stretch the photo onto other ground (issue 21: a
   // photo of other ground at perspective 0.40, anisotropy 1.58).
   if (out.outline.ok) {
-    const cv::Rect2d extent(-0.5, -0.5, grey.cols / f, grey.rows / f);  // full-size photo px
     if (const std::string shape = NadirShape(out.outline.photo_to_depth, extent, o.registration); !shape.empty()) {
       out.outline.ok = false;
       out.outline.reason = "no registration found: " + out.outline.reason + "; its pose " + shape;
     }
   }
+  // Determined, as on the region route (RegistrationOptions::ambiguity_px),
+  // whatever the model: on large tiles (seed 108, working photo) it refused
+  // two answers 5.3 and 9.2 px off, right near the buildings that anchored
+  // them, and four right ones.
+  if (out.outline.ok && evidence && o.registration.ambiguity_px > 0) {
+    out.outline.ambiguity_px =
+        AmbiguityGap(*evidence, out.outline.photo_to_depth, out.outline.lean_px_per_m, o.registration, extent);
+    if (out.outline.ambiguity_px > o.registration.ambiguity_px) {
+      out.outline.ok = false;
+      out.outline.reason = "no registration found: " + out.outline.reason +
+                           cv::format("; not determined to %.0f px: an equally good pose lies %.1f px away",
+                                      o.registration.ambiguity_px, out.outline.ambiguity_px);
+    }
+  }
   out.outline_search_ran = true;
   out.outline_search_ms = ts.ElapsedMs();
-  grey.release();
   if (out.outline.ok || !regions) {
     Registration r;
     r.ok = out.outline.ok;
@@ -136,6 +175,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     r.model = out.outline.model;
     r.edge = out.outline.edge;
     r.lean_px_per_m = out.outline.lean_px_per_m;
+    r.ambiguity_px = out.outline.ambiguity_px;
     r.propagate_ms = out.outline.ms;
     if (regions) r.match_ms = out.registration.match_ms, r.propagate_ms += out.registration.propagate_ms;
     out.registration = std::move(r);

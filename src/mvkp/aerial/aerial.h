@@ -30,9 +30,24 @@ struct AerialOptions {
   // only. kOutlines: the outline search (outline_search.h) only. kAuto: the
   // regions first; the outline search when they find no registration.
   enum class Method { kAuto, kRegions, kOutlines } method = Method::kAuto;
-  int auto_outline_max_regions = 12;  // kAuto runs the outline search only on depths with at most this
-                                      //   many building regions: on larger tiles it added no success in
-                                      //   our measurements and cost 2.5 s and 40-90 MB (docs/aerial.md)
+  int auto_outline_max_regions = 0;   // kAuto runs the outline search only on depths with at most this
+                                      //   many building regions (0: any). Since it works on a small copy
+                                      //   of the photo and its answers must be determined to ambiguity_px,
+                                      //   it adds right answers on large tiles too (docs/aerial.md)
+  // Large tiles: depths with more than large_tile_regions building regions
+  // (0: none), where the outline search was not built. Its coarse cost goes
+  // as the template's area, so the template is capped at
+  // large_tile_template_radius cells (4x faster than 24 on 1000 x 1000
+  // tiles); and with tens of outlines in view a right pose puts a clear
+  // majority on edges, while poses caught between roofs and ground (a lean
+  // the refinement did not reach) put about half: large_tile_min_on_edges.
+  int large_tile_regions = 12;
+  int large_tile_template_radius = 16;
+  double large_tile_min_on_edges = 0.6;
+  int outline_max_side = 600;         // the outline search sees the photo downscaled to this side (0: the
+                                      //   working photo, photo_max_side): its oriented-edge fields are its
+                                      //   memory (~45 MB at 1200 px); the image check that refines and
+                                      //   judges its answer keeps the working photo
   OutlineSearchOptions outline;
   // Ground size of a pixel, metres (0: unknown). When both are known the
   // outline search looks only near their ratio of scales.

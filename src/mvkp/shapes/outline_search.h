@@ -70,9 +70,12 @@ struct OutlineSearchOptions {
   double min_confidence = 0.5;      // accepted at confidence >= this ...
   int min_outlines = 2;             // ... with this many outlines in view (1 is not enough: a lone
                                     //   outline sits on any similar rectangle of other ground), and, with
-                                    //   evidence, the image check passed with at least half of the outlines
-                                    //   in view on edges
-  bool perspective = true;          // final EdgeEvidence refinement includes the homography
+                                    //   evidence, the image check passed with at least min_on_edges of
+                                    //   the outlines in view on edges
+  double min_on_edges = 0.5;
+  bool perspective = true;          // final EdgeEvidence refinement includes the homography; with
+                                    //   evidence, an answer must then hold under it (move its outlines
+                                    //   < distinct_px): a similarity the refinement leaves is not the pose
   void Check() const;               // throws Error(kInvalidArgument)
 };
 
@@ -88,13 +91,16 @@ struct OutlineSearchResult {
   EdgeScore edge;                    // image check at the answer (when evidence given)
   cv::Point2d lean_px_per_m{0, 0};   // the photo's lean estimated by the final refinement (edge_evidence.h)
   int poses = 0;                     // (rotation, scale) pairs correlated
+  double ambiguity_px = 0;           // set by RegisterAerial: the mean gap to an equally good pose
+                                     //   (AmbiguityGap, register.h) when it judged the answer
   double ms = 0;
 };
 
 // `photo`: 8-bit grey or BGR, possibly downscaled: contour px * photo_scale =
 // image px (as EdgeEvidence). `outlines`: closed building outlines, depth px.
-// `evidence` (optional): the image check on the same photo and outlines;
-// used for the final refinement and acceptance.
+// `evidence` (optional): the image check on the same outlines and scene (its
+// photo may be larger than `photo`: both are addressed in contour px); used
+// for the final refinement and acceptance.
 OutlineSearchResult SearchOutlines(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& outlines,
                                    const OutlineSearchOptions& options = {}, const EdgeEvidence* evidence = nullptr);
 

@@ -591,8 +591,8 @@ static bool JointLeanFit(const std::vector<Region>& depth,
 // answer T (with its lean) and a pose refined from one of 8 perspective
 // perturbations that scores at least the answer's contrast (see
 // RegistrationOptions::ambiguity_px).
-static double AmbiguityGap(const EdgeEvidence& ev, const cv::Matx33d& T, cv::Point2d lean,
-                           const RegistrationOptions& opt, const cv::Rect2d& extent) {
+double AmbiguityGap(const EdgeEvidence& ev, const cv::Matx33d& T, cv::Point2d lean,
+                    const RegistrationOptions& opt, const cv::Rect2d& extent) {
   const double L = std::max(extent.width, extent.height);
   if (!(L > 0)) return 0;
   const double cx = extent.x + extent.width / 2, cy = extent.y + extent.height / 2;

@@ -169,6 +169,14 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions,
 std::string NadirShape(const cv::Matx33d& photo_to_depth, const cv::Rect2d& photo_extent,
                        const RegistrationOptions& options);
 
+// The largest mean gap (depth px, over the outlines in view) between the
+// answer `photo_to_depth` (with its `lean`) and a pose refined sharply from
+// one of 8 perspective perturbations of it (+-ambiguity_perspective across
+// `photo_extent`) that scores at least the answer's edge contrast: how far
+// off an equally good pose lies (RegistrationOptions::ambiguity_px).
+double AmbiguityGap(const EdgeEvidence& evidence, const cv::Matx33d& photo_to_depth, cv::Point2d lean,
+                    const RegistrationOptions& options, const cv::Rect2d& photo_extent);
+
 // Applies a 3x3 transform to points (perspective division).
 Contour TransformPoints(const cv::Matx33d& T, const Contour& points);
 
