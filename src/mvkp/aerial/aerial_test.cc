@@ -218,7 +218,9 @@ TEST(Aerial, LookAlikeHousesAreRefusedWithoutImageEvidence) {
   o.style = "suburb";
   const City c = MakeCity(o, 1000003);
   const AerialRegistration r = RegisterAerial(c.depth, c.photo);
-  if (r.registration.ok) EXPECT_LT(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
+  if (r.registration.ok) {
+    EXPECT_LT(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
+  }
   // (with the hedges as depth regions, as before their width was checked:
   // they made the look-alike sets on this scene)
   AerialOptions shapes;
@@ -234,7 +236,9 @@ TEST(Aerial, LookAlikeHousesAreRefusedWithoutImageEvidence) {
   // other: the square-pixel check alone refuses it too.
   shapes.registration.max_anisotropy = RegistrationOptions{}.max_anisotropy;
   const AerialRegistration s2 = RegisterAerial(c.depth, c.photo, shapes);
-  if (s2.registration.ok) EXPECT_LT(CornerError(c, s2.registration.photo_to_depth), 5.0) << s2.registration.reason;
+  if (s2.registration.ok) {
+    EXPECT_LT(CornerError(c, s2.registration.photo_to_depth), 5.0) << s2.registration.reason;
+  }
 }
 
 // A dense town whose first consistent set of region pairs is right by its
