@@ -3,7 +3,10 @@
 #include <cmath>
 
 #include <gtest/gtest.h>
+#include <string>
 #include <opencv2/imgproc.hpp>
+
+#include "mvkp/shapes/edge_evidence.h"
 
 namespace mvkp {
 namespace {
@@ -89,6 +92,34 @@ TEST(OutlineSearch, FindsDrawnOutlinesExactly) {
     EXPECT_TRUE(r.ok);
     EXPECT_GE(r.confidence, 0.5);
   }
+}
+
+// An answer must hold under the image check's perspective refinement
+// (OutlineSearchOptions::perspective). The image check here sees the
+// buildings 12 depth px from where the searched photo shows them, so its
+// refinement moves the search's pose by about that much: not the pose,
+// refused. With the image check on the searched photo itself the pose holds
+// and is accepted.
+TEST(OutlineSearch, APoseTheImageCheckMovesFarIsRefused) {
+  const auto b = Buildings();
+  const cv::Size size(260, 240);
+  cv::Matx33d T = Similarity(1.0, 200.0, 0, 0);
+  const cv::Point2d c = Apply(T, {size.width / 2.0, size.height / 2.0});
+  T(0, 2) = 100 - c.x, T(1, 2) = 100 - c.y;
+  const cv::Mat photo = Photo(b, T, size, 7);
+  cv::Matx33d moved = T;
+  moved(0, 2) += 12;  // the evidence's photo: every building 12 depth px along x
+  const cv::Mat other = Photo(b, moved, size, 7);
+  const EdgeEvidence same(photo, 1.0, b), shifted(other, 1.0, b);
+  const OutlineSearchResult ok = SearchOutlines(photo, 1.0, b, {}, &same);
+  EXPECT_TRUE(ok.ok) << ok.reason;
+  EXPECT_LT(MeanError(ok.photo_to_depth, T, size), 1.0);
+  const OutlineSearchResult r = SearchOutlines(photo, 1.0, b, {}, &shifted);
+  EXPECT_FALSE(r.ok) << r.reason;
+  EXPECT_NE(r.reason.find("not the pose"), std::string::npos) << r.reason;
+  OutlineSearchOptions similarity_only;
+  similarity_only.perspective = false;  // no perspective refinement asked: the rule does not apply
+  EXPECT_EQ(SearchOutlines(photo, 1.0, b, similarity_only, &shifted).reason.find("not the pose"), std::string::npos);
 }
 
 // Other ground: a photo of different buildings (and clutter). Whatever pose
