@@ -10,9 +10,11 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <thread>
@@ -42,14 +44,30 @@ cv::Mat Texture() {
   return img;
 }
 
-std::string Send(const std::uint8_t* data, std::size_t size) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) std::abort();
+// A connection to the server. connect() can fail transiently: libFuzzer's
+// timer signal interrupts it (EINTR) while the accept queue is full, or the
+// queue refuses for a moment; retried for up to ~5 s, then a server that
+// still takes no connection is a finding (abort, with the reason).
+int Connect() {
   sockaddr_in sa{};
   sa.sin_family = AF_INET;
   sa.sin_port = htons(std::uint16_t(g_port));
   sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) std::abort();
+  int err = 0;
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0) std::abort();
+    if (::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) == 0) return fd;
+    err = errno;
+    ::close(fd);
+    if (err != EINTR) ::usleep(50000);
+  }
+  std::fprintf(stderr, "serve_request_fuzz: no connection to the server: %s\n", std::strerror(err));
+  std::abort();
+}
+
+std::string Send(const std::uint8_t* data, std::size_t size) {
+  const int fd = Connect();
   timeval tv{60, 0};  // the first quality report takes seconds under ASan
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
