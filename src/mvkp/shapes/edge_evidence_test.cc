@@ -374,7 +374,7 @@ TEST(EdgeEvidence, RoofsStandApartAtTheRightTransformOnly) {
 
 TEST(EdgeEvidence, RoofsDecideOnlyWhenScoredOverEnoughOutlines) {
   const Scene s = MakeScene(1);
-  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);  // defaults: edges 1.8; roofs 4 outlines, 1.5 admits 1.5, veto 0.9
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);  // defaults: edges 1.8; roofs 4 outlines, 1.5 admits 1.5, veto 1.1
   EdgeScore e;
   e.enough = true;
   e.contrast = 1.6;
@@ -387,6 +387,13 @@ TEST(EdgeEvidence, RoofsDecideOnlyWhenScoredOverEnoughOutlines) {
   EXPECT_FALSE(ev.Accepts(e));  // too few outlines for a roof verdict
   e.contrast = 2.0, e.roof_regions = 6, e.roof_contrast = 0.5;
   EXPECT_FALSE(ev.Accepts(e));  // edges that pass, but no roofs where the outlines are: refused
+  // (issue 21: a photo of other ground was registered with edges 2.04 and
+  // roofs 0.93; no right answer with edges below 2.2 had roofs below 1.18)
+  e.roof_contrast = 1.0;
+  EXPECT_FALSE(ev.Accepts(e));
+  e.roof_contrast = 1.15;
+  EXPECT_TRUE(ev.Accepts(e));
+  e.roof_contrast = 0.5;
   e.roof_regions = 3;
   EXPECT_TRUE(ev.Accepts(e));
   e.roof_regions = 6, e.contrast = 3.0;
