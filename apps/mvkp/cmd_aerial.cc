@@ -139,6 +139,8 @@ struct RegisterArgs {
   bool json = false;
   double res_m = 0;
   int photo_max_side = 1200;
+  int photo_min_side = AerialOptions{}.photo_min_side;
+  double photo_max_upscale = AerialOptions{}.photo_max_upscale;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
   RegistrationOptions opt;
@@ -197,6 +199,8 @@ Json RegisterCompute(RegisterArgs& a) {
     const double read_ms = total.ElapsedMs();
     AerialOptions ao;
     ao.photo_max_side = a.photo_max_side;
+    ao.photo_min_side = a.photo_min_side;
+    ao.photo_max_upscale = a.photo_max_upscale;
     ao.registration = a.opt;
     ao.edge = a.edge;
     ao.image_check = a.edge.min_contrast > 0;
@@ -263,6 +267,9 @@ Json RegisterCompute(RegisterArgs& a) {
     out["keypoints1"] = pcont.size();
     out["keypoints2"] = dcont.size();
     out["regions"] = {{"photo", pcont.size()}, {"depth", dcont.size()}};
+    // how many times the working photo's size its regions were segmented at
+    // (> 1: a coarse photo, segmented again upscaled; aerial.h photo_min_side)
+    out["photo_segmentation_upscale"] = ar.photo_upscale;
     Json matches = Json::array();
     for (const auto& [p, q] : reg.correspondences) matches.push_back({p.x, p.y, q.x, q.y, 0.0, 1});
     out["matches"] = matches;
@@ -420,6 +427,13 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_option("--photo-max-side", a->photo_max_side, "segment larger photos downscaled to this side (0: never)")
       ->capture_default_str()
       ->check(CLI::Range(0, 100000));
+  c->add_option("--photo-min-side", a->photo_min_side,
+                "coarse photos: when the working size finds no registration, try the photo segmented upscaled to this side, by at most --photo-max-upscale (0: never)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100000));
+  c->add_option("--photo-max-upscale", a->photo_max_upscale, "the largest upscaling of --photo-min-side")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 8.0));
   c->callback([a, code] { *code = RunRegister(*a); });
 }
 

@@ -1,6 +1,7 @@
 #include "mvkp/aerial/aerial.h"
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 #include <utility>
 
@@ -13,6 +14,10 @@ namespace mvkp {
 
 void AerialOptions::Check() const {
   Require(photo_max_side >= 0, ErrorCode::kInvalidArgument, "AerialOptions.photo_max_side must be >= 0");
+  Require(photo_min_side >= 0 && photo_max_upscale >= 1 && std::isfinite(photo_max_upscale), ErrorCode::kInvalidArgument,
+          "AerialOptions: photo_min_side must be >= 0 and photo_max_upscale >= 1");
+  Require(upscaled_min_pairs >= 1 && upscaled_min_edge_contrast >= 0, ErrorCode::kInvalidArgument,
+          "AerialOptions: upscaled_min_pairs >= 1, upscaled_min_edge_contrast >= 0");
   Require(outline_max_side == 0 || outline_max_side >= 64, ErrorCode::kInvalidArgument,
           "AerialOptions.outline_max_side must be 0 or >= 64");
   Require(auto_outline_max_regions >= 0, ErrorCode::kInvalidArgument,
@@ -77,17 +82,34 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   for (const auto& r : dregions) out.depth_regions.emplace_back(r.contour.begin(), r.contour.end());
 
   tp.Restart();
-  std::vector<PhotoRegion> pregions;
-  if (regions) pregions = SegmentOptical(std::move(photo), o.optical);
-  photo.release();
-  // contours back in full-size photo px (pixel centres at integers)
-  for (const auto& r : pregions) {
-    Contour c;
-    c.reserve(r.contour.size());
-    for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / f - 0.5), float((p.y + 0.5) / f - 0.5));
-    out.photo_regions.push_back(std::move(c));
-    out.photo_region_confidence.push_back(r.confidence);
+  // The photo's roofs, segmented `u` times the working size; contours back
+  // in full-size photo px (pixel centres at integers).
+  auto segment = [&](cv::Mat img, double u, std::vector<Contour>& contours, std::vector<double>& confidence) {
+    const std::vector<PhotoRegion> pregions = SegmentOptical(std::move(img), o.optical);
+    for (const auto& r : pregions) {
+      Contour c;
+      c.reserve(r.contour.size());
+      for (const auto& p : r.contour) c.emplace_back(float((p.x + 0.5) / (f * u) - 0.5), float((p.y + 0.5) / (f * u) - 0.5));
+      contours.push_back(std::move(c));
+      confidence.push_back(r.confidence);
+    }
+  };
+  // A coarse photo (buildings a few px across) is also segmented upscaled,
+  // for when its own size finds nothing (photo_min_side, aerial.h). Both run
+  // here, before the image check holds its maps: peak memory stays that of
+  // one segmentation at the working size.
+  const double upscale = regions && o.photo_min_side > 0 && std::max(photo.cols, photo.rows) < o.photo_min_side
+                             ? std::min(o.photo_max_upscale, double(o.photo_min_side) / std::max(photo.cols, photo.rows))
+                             : 1.0;
+  std::vector<Contour> up_regions;
+  std::vector<double> up_confidence;
+  if (upscale > 1) {
+    cv::Mat big;
+    cv::resize(photo, big, cv::Size(), upscale, upscale, cv::INTER_CUBIC);
+    segment(std::move(big), upscale, up_regions, up_confidence);
   }
+  if (regions) segment(std::move(photo), 1.0, out.photo_regions, out.photo_region_confidence);
+  photo.release();
   out.segment_photo_ms = photo_ms + tp.ElapsedMs();
 
   std::optional<EdgeEvidence> evidence;
@@ -103,6 +125,28 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   if (regions) {
     out.registration = RegisterContours(out.photo_regions, out.depth_regions, o.registration,
                                         evidence ? &*evidence : nullptr);
+    if (!out.registration.ok && upscale > 1) {
+      Registration r2 = RegisterContours(up_regions, out.depth_regions, o.registration, evidence ? &*evidence : nullptr);
+      r2.match_ms += out.registration.match_ms, r2.propagate_ms += out.registration.propagate_ms;
+      // Roofs traced on interpolated pixels are weaker evidence: more pairs
+      // and clearer edges than the working size needs (aerial.h).
+      if (r2.ok && (int(r2.region_matches.size()) < o.upscaled_min_pairs ||
+                    (evidence && (!r2.edge.enough || r2.edge.contrast < o.upscaled_min_edge_contrast)))) {
+        r2.ok = false;
+        r2.reason = cv::format("no registration found: %s; an upscaled segmentation needs %d region pairs and edge "
+                               "contrast %.2f",
+                               r2.reason.c_str(), o.upscaled_min_pairs, o.upscaled_min_edge_contrast);
+      }
+      if (r2.ok) {
+        out.photo_upscale = upscale;
+        out.registration = std::move(r2);
+        out.photo_regions = std::move(up_regions), out.photo_region_confidence = std::move(up_confidence);
+      } else {
+        out.registration.reason += cv::format("; segmented %.2fx: ", upscale) +
+                                   r2.reason.substr(r2.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0);
+        out.registration.match_ms = r2.match_ms, out.registration.propagate_ms = r2.propagate_ms;
+      }
+    }
     out.method = out.registration.route;  // "regions" | "single-pair"
     if (out.registration.ok) {
       // the single-pair route's confidence is its own margin (register.h),

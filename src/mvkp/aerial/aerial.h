@@ -21,6 +21,17 @@ namespace mvkp {
 struct AerialOptions {
   int photo_max_side = 1200;  // larger photos are segmented downscaled to this side (0: never);
                               //   roofs stay tens of pixels wide, memory and time follow the smaller image
+  // Coarse photos (issue 21): buildings a few px across, which the
+  // segmentation merges with their gardens. A photo smaller than
+  // photo_min_side is also segmented upscaled to it (by at most
+  // photo_max_upscale, cubic); when the region routes find nothing at the
+  // working size, they are tried on those regions. Their answer needs
+  // upscaled_min_pairs region pairs and an image check of at least
+  // upscaled_min_edge_contrast (docs/aerial.md, "Coarse photos").
+  int photo_min_side = 1200;
+  double photo_max_upscale = 3;
+  int upscaled_min_pairs = 4;
+  double upscaled_min_edge_contrast = 1.9;
   bool image_check = true;    // EdgeEvidence (edge_evidence.h) on the photo and all depth outlines
   DepthSegmentOptions depth;
   OpticalSegmentOptions optical;
@@ -60,6 +71,7 @@ struct AerialRegistration {
   std::vector<Contour> photo_regions;  // in full-size photo px
   std::vector<Contour> depth_regions;  // depth px
   std::vector<double> photo_region_confidence;  // per photo region (ortho's confidence)
+  double photo_upscale = 1;            // the photo regions were segmented this many times the working size
   std::string method;                  // which method gave `registration`: "regions" | "single-pair" | "outlines"
   double confidence = 0;               // [0, 1] of the answer (see docs/aerial.md); 0 when !ok
   bool outline_search_ran = false;
