@@ -80,6 +80,7 @@ struct PyRegistration {
   py::dict time_ms;
   std::string method;       // register_aerial: "regions" | "single-pair" | "outlines" ("" when not registered)
   double confidence = 0;    // register_aerial: [0, 1] of the answer
+  double photo_upscale = 1;  // register_aerial: the photo regions' segmentation size / the working size
 };
 
 }  // namespace
@@ -245,6 +246,9 @@ void BindAerial(py::module_& m) {
         return r.reg.ok && !r.method.empty() ? py::object(py::str(r.method)) : py::object(py::none());
       }, "register_aerial: which method answered, 'regions', 'single-pair' (one region pair's transform vouched for by the image check) or 'outlines' (None when not registered)")
       .def_readonly("confidence", &PyRegistration::confidence, "register_aerial: confidence of the answer in [0, 1] (0 when not registered)")
+      .def_readonly("photo_segmentation_upscale", &PyRegistration::photo_upscale,
+                    "register_aerial: 1, or the factor a coarse photo was segmented upscaled by for the regions "
+                    "of the answer (photo_min_side)")
       .def_property_readonly("lean_depth_px_per_m", [](const PyRegistration& r) -> py::object {
         if (!r.reg.ok) return py::none();
         return py::make_tuple(r.reg.lean_px_per_m.x, r.reg.lean_px_per_m.y);
@@ -301,9 +305,9 @@ void BindAerial(py::module_& m) {
       "segment_optical / segment_depth return). Keyword arguments are RegistrationOptions fields.");
   m.def(
       "register_aerial",
-      [](py::handle depth, py::handle photo, int photo_max_side, py::handle depth_options, py::handle optical_options,
-         py::handle edge_options, py::handle options, const std::string& method, double photo_res_m, double depth_res_m,
-         py::kwargs kw) {
+      [](py::handle depth, py::handle photo, int photo_max_side, int photo_min_side, py::handle depth_options,
+         py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
+         double photo_res_m, double depth_res_m, py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -311,6 +315,7 @@ void BindAerial(py::module_& m) {
         const DepthSegmentOptions dso = MakeOptions<DepthSegmentOptions>(depth_options, py::dict(), "register_aerial");
         const OpticalSegmentOptions oso = MakeOptions<OpticalSegmentOptions>(optical_options, py::dict(), "register_aerial");
         if (photo_max_side < 0) throw py::value_error("photo_max_side must be >= 0");
+        if (photo_min_side < 0) throw py::value_error("photo_min_side must be >= 0");
         const EdgeEvidenceOptions eo = MakeOptions<EdgeEvidenceOptions>(edge_options, py::dict(), "register_aerial");
         eo.Check();
         ImageArg z = ToFloatImage(depth, "depth");
@@ -322,6 +327,7 @@ void BindAerial(py::module_& m) {
           Timer total;
           AerialOptions ao;
           ao.photo_max_side = photo_max_side;
+          ao.photo_min_side = photo_min_side;
           ao.depth = dso;
           ao.optical = oso;
           ao.edge = eo;
@@ -338,6 +344,7 @@ void BindAerial(py::module_& m) {
           photo_ms = ar.segment_photo_ms;
           out->method = ar.method;
           out->confidence = out->reg.ok ? ar.confidence : 0.0;
+          out->photo_upscale = ar.photo_upscale;
           outline_ms = ar.outline_search_ms;
           total_ms = total.ElapsedMs();
         }
@@ -350,6 +357,7 @@ void BindAerial(py::module_& m) {
         return out;
       },
       py::arg("depth"), py::arg("photo"), py::kw_only(), py::arg("photo_max_side") = 1200,
+      py::arg("photo_min_side") = AerialOptions{}.photo_min_side,
       py::arg("depth_options") = py::none(), py::arg("optical_options") = py::none(), py::arg("edge_options") = py::none(),
       py::arg("options") = py::none(), py::arg("method") = "auto", py::arg("photo_res_m") = 0.0,
       py::arg("depth_res_m") = 0.0,
@@ -359,7 +367,9 @@ void BindAerial(py::module_& m) {
       "(model='auto', min_regions=4, seed=1, ...); depth_options / optical_options are DepthSegmentOptions / "
       "OpticalSegmentOptions. method: 'auto' (regions, then the outline search when they find nothing), "
       "'regions' or 'outlines'; photo_res_m / depth_res_m (metres per pixel, 0 unknown) narrow the outline "
-      "search's scales. The result's method and confidence say which method answered and how surely.");
+      "search's scales. photo_min_side (1200; 0 off): a smaller photo is also segmented upscaled, for when its "
+      "own size finds nothing (photo_segmentation_upscale says which answered). The result's method and "
+      "confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)
   py::class_<ViewRegistrar, std::shared_ptr<ViewRegistrar>>(
