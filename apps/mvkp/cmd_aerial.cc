@@ -236,6 +236,9 @@ Json RegisterCompute(RegisterArgs& a) {
     // the largest mean gap (depth px) to an equally good pose found by the
     // ambiguity check (RegistrationOptions::ambiguity_px); 0 when it did not run
     out["ambiguity_px"] = reg.ambiguity_px;
+    // how far the relocation moved the answer (EdgeEvidence::Relocate; mean
+    // over the outlines in view, depth px); 0 when it kept it
+    out["relocated_px"] = reg.ok ? reg.relocated_px : 0.0;
     // the photo's lean (conventional orthophoto): roofs show lean * height
     // away from their footprints; the homography maps the ground
     if (reg.ok) {
@@ -416,6 +419,11 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_flag_callback("--no-lean", [a] { a->edge.max_lean_px_per_m = 0; },
                        "do not estimate the photo's lean (roofs displaced by height x lean in a conventional "
                        "orthophoto); the answer then maps the mean roof");
+  c->add_option("--relocate-rounds", a->edge.relocate_rounds,
+                "image check: relocations of an accepted answer at most (its error measured cell by cell over "
+                "the photo, a homography fitted to it; kept when the outlines lie on edges >= 5 % better; 0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10));
   c->add_flag("!--no-joint-lean", a->opt.joint_lean_fit,
               "estimate the lean from the lean-free fit only (no second start from the region pairs refitted "
               "with the lean)");

@@ -216,6 +216,10 @@ void BindAerial(py::module_& m) {
       .def_property_readonly(
           "ambiguity_px", [](const PyRegistration& r) { return r.reg.ambiguity_px; },
           "The largest mean gap, depth px, to an equally good pose the ambiguity check found (0 when it did not run).")
+      .def_property_readonly(
+          "relocated_px", [](const PyRegistration& r) { return r.reg.relocated_px; },
+          "How far the relocation (EdgeEvidence::Relocate) moved the answer, mean depth px over the outlines in "
+          "view; 0 when it kept it (EdgeEvidenceOptions.relocate_rounds = 0 turns it off).")
       .def_property_readonly("edge", [](const PyRegistration& r) -> py::object {
         if (!r.reg.edge.enough) return py::none();
         py::dict d;

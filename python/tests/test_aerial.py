@@ -37,6 +37,7 @@ def test_segment_and_register(city):
         assert mvkp.mean_corner_error(r2.homography, city.photo_to_depth, w, h) < 5.0
         assert r2.correspondences.shape[1] == 4 and r2.region_matches
         assert 0.0 <= r2.ambiguity_px <= 5.0  # the answer is determined to the default 5 px
+        assert r2.relocated_px >= 0.0
         e = r2.edge  # the image check of the answer: edges, and the roofs' colours
         assert e["contrast"] > 0 and e["regions_on_edges"] <= e["regions"]
         assert e["roof_regions"] >= 0 and (e["roof_contrast"] is None) == (e["roof_regions"] == 0)
@@ -97,6 +98,8 @@ def test_aerial_bad_input(city):
         mvkp.register_aerial(city.depth, np.zeros((50, 50, 4), np.uint8))
     with pytest.raises(ValueError, match="unknown Model"):
         mvkp.register_aerial(city.depth, city.photo, model="projective")
+    with pytest.raises(ValueError, match="relocate_cells"):
+        mvkp.register_aerial(city.depth, city.photo, edge_options=mvkp.EdgeEvidenceOptions(relocate_cells=1))
 
 
 @pytest.mark.skipif(not __import__("os").environ.get("MVKP_CLI"), reason="MVKP_CLI not set")
@@ -114,7 +117,7 @@ def test_register_aerial_equals_cli(city, tmp_path):
     j = json.loads(out.stdout)
     assert j["ok"] == r.ok and j["reason"] == r.reason
     if r.ok:
-        assert j["model"] == r.model
+        assert j["model"] == r.model and j["relocated_px"] == pytest.approx(r.relocated_px)
         np.testing.assert_allclose(np.array(j["homography"]), r.homography, rtol=1e-9, atol=1e-9)
 
 

@@ -220,6 +220,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     r.edge = out.outline.edge;
     r.lean_px_per_m = out.outline.lean_px_per_m;
     r.ambiguity_px = out.outline.ambiguity_px;
+    r.relocated_px = out.outline.relocated_px;
     r.propagate_ms = out.outline.ms;
     if (regions) r.match_ms = out.registration.match_ms, r.propagate_ms += out.registration.propagate_ms;
     out.registration = std::move(r);

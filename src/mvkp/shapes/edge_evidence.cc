@@ -31,6 +31,11 @@ void EdgeEvidenceOptions::Check() const {
        "EdgeEvidenceOptions: roof_shrink_px in [0, 10], roof_ring_px in [1, 20], min_roof_regions >= 1");
   need(roof_accept >= 0 && roof_veto >= 0 && roof_veto_below >= 0 && min_contrast_with_roofs > 0,
        "EdgeEvidenceOptions: roof_accept, roof_veto, roof_veto_below >= 0, min_contrast_with_roofs > 0");
+  need(relocate_radius_px > 0 && relocate_radius_px <= 200 && relocate_grid_px > 0 &&
+           relocate_grid_px <= relocate_radius_px && relocate_cells >= 2 && relocate_cells <= 16 &&
+           relocate_min_gain >= 0 && relocate_rounds >= 0,
+       "EdgeEvidenceOptions: relocate_radius_px in (0, 200], relocate_grid_px in (0, relocate_radius_px], "
+       "relocate_cells in [2, 16], relocate_min_gain >= 0, relocate_rounds >= 0");
 }
 
 namespace {
@@ -473,6 +478,78 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
   }
   if (lean) *lean = lean_of(d);
   return correction(d) * photo_to_depth;
+}
+
+// One relocation step (see Relocate): false when too few cells could be
+// measured or no homography fits them.
+bool EdgeEvidence::RelocateOnce(const cv::Matx33d& photo_to_depth, cv::Point2d lean, bool perspective,
+                                cv::Matx33d* T_out, cv::Point2d* lean_out) const {
+  const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
+  const cv::Matx33d D0 = S * photo_to_depth.inv();
+  const float w = float(grey_.cols), h = float(grey_.rows);
+  cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
+  for (const Sample& s : samples_) {
+    const cv::Point2d p = Map(D0, cv::Point2d(s.q) + lean * double(s.h));
+    if (p.x < 0 || p.y < 0 || p.x >= w || p.y >= h) continue;
+    lo.x = std::min(lo.x, double(s.q.x)), lo.y = std::min(lo.y, double(s.q.y));
+    hi.x = std::max(hi.x, double(s.q.x)), hi.y = std::max(hi.y, double(s.q.y));
+  }
+  if (!(hi.x - lo.x > 4 && hi.y - lo.y > 4)) return false;
+  const cv::Matx33d Ti = photo_to_depth.inv();
+  const int cells = opt_.relocate_cells;
+  const int need = std::max(20, opt_.min_points / 3);  // samples in view for a cell's verdict
+  const int k = int(std::floor(opt_.relocate_radius_px / opt_.relocate_grid_px));
+  std::vector<cv::Point2f> from, to;  // photo (contour px) -> depth px, one per cell
+  const double cw = (hi.x - lo.x) / cells, ch = (hi.y - lo.y) / cells;
+  for (int cy = 0; cy < cells; ++cy)
+    for (int cx = 0; cx < cells; ++cx) {
+      const cv::Rect2d cell(lo.x + cx * cw, lo.y + cy * ch, cw, ch);
+      int n0 = 0;
+      OnEdge(D0, lean, 0, opt_.search_px, &n0, &cell);
+      if (n0 < need) continue;
+      double best = -1;
+      cv::Point2d bd;
+      for (int iy = -k; iy <= k; ++iy)
+        for (int ix = -k; ix <= k; ++ix) {
+          const cv::Point2d d(ix * opt_.relocate_grid_px, iy * opt_.relocate_grid_px);
+          if (std::hypot(d.x, d.y) > opt_.relocate_radius_px) continue;
+          const cv::Matx33d T = cv::Matx33d(1, 0, d.x, 0, 1, d.y, 0, 0, 1) * photo_to_depth;
+          int m = 0;
+          const double v = OnEdge(S * T.inv(), lean, 0, opt_.search_px, &m, &cell);
+          if (m < need) continue;
+          const double vv = v * std::min(1.0, double(m) / n0);  // don't win by leaving the photo
+          if (vv > best) best = vv, bd = d;
+        }
+      if (best < 0) continue;
+      const cv::Matx33d Tc =
+          Refine(cv::Matx33d(1, 0, bd.x, 0, 1, bd.y, 0, 0, 1) * photo_to_depth, false, true, &cell, nullptr);
+      const cv::Point2d p = Map(Ti, cv::Point2d(cell.x + cell.width / 2, cell.y + cell.height / 2));
+      from.emplace_back(p), to.emplace_back(Map(Tc, p));
+    }
+  if (from.size() < 4) return false;
+  const cv::Mat H = cv::findHomography(from, to, cv::RANSAC, 3.0, cv::noArray(), 2000, 0.999);
+  if (H.empty()) return false;
+  *lean_out = lean;
+  *T_out = Refine(cv::Matx33d(H), perspective, true, nullptr, lean_out);
+  return true;
+}
+
+EdgeEvidence::Relocation EdgeEvidence::Relocate(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
+                                                bool perspective) const {
+  Relocation out;
+  out.photo_to_depth = photo_to_depth, out.lean = lean;
+  out.edge = Evaluate(photo_to_depth, lean);
+  if (!out.edge.enough) return out;
+  for (int r = 0; r < opt_.relocate_rounds; ++r) {
+    cv::Matx33d T;
+    cv::Point2d l;
+    if (!RelocateOnce(out.photo_to_depth, out.lean, perspective, &T, &l)) break;
+    const EdgeScore e = Evaluate(T, l);
+    if (!Accepts(e) || e.points < out.edge.points * 0.95 || e.on < (1 + opt_.relocate_min_gain) * out.edge.on) break;
+    out.photo_to_depth = T, out.lean = l, out.edge = e, out.moved = true, ++out.rounds;
+  }
+  if (out.moved) out.moved_px = MeanGap(photo_to_depth, out.photo_to_depth);
+  return out;
 }
 
 cv::Matx33d EdgeEvidence::RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective,

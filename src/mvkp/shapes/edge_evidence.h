@@ -85,6 +85,12 @@ struct EdgeEvidenceOptions {
   double roof_veto = 1.1;              // a roof contrast below this refuses an answer ...
   double roof_veto_below = 2.2;        //   ... whose edge contrast is below this (dark roofs on dark
                                        //   lots stand apart by their edges only)
+  // Relocate (0 rounds: off)
+  double relocate_radius_px = 24;      // local translations searched, depth px
+  double relocate_grid_px = 3;         // ... every this many (2 x search_px: the windows tile)
+  int relocate_cells = 4;              // cells per side over the outlines in view
+  double relocate_min_gain = 0.05;     // a relocated pose is kept when its edge response is this much higher
+  int relocate_rounds = 3;             // relocations at most
   void Check() const;         // throws Error(kInvalidArgument)
 };
 
@@ -157,6 +163,32 @@ class EdgeEvidence {
   cv::Matx33d RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective,
                             cv::Point2d* lean = nullptr) const;
 
+  // A wider basin than Refine's (issue 21, near misses). Refine climbs to
+  // the nearest maximum of the edge response in steps of at most 2 depth
+  // px; a transform fitted on a few region pairs, right near them, can be
+  // 5-20 px off elsewhere (a scale, shear or perspective error grows with
+  // the distance from them) with the outlines there on the wrong edges (a
+  // roof's shadow, the next roof, a hedge), a maximum Refine keeps.
+  // Relocate measures the error locally, where it is a translation: the
+  // outlines in view are split into relocate_cells x relocate_cells cells
+  // (of their bounding box), and in each cell with enough samples the
+  // translations within relocate_radius_px (every relocate_grid_px) are
+  // scored and the best one refined on that cell alone. A homography is
+  // fitted (RANSAC) to the cells' centres as they moved, refined as Refine
+  // does (with `lean` as its start), and kept when its edge response beats
+  // the given pose's by relocate_min_gain (EdgeScore::on, at no fewer
+  // outline samples in view) and the image check accepts it; then again
+  // from there, at most relocate_rounds times.
+  struct Relocation {
+    bool moved = false;      // a relocated pose beat the given one
+    cv::Matx33d photo_to_depth = cv::Matx33d::eye();  // the result (the given pose when !moved)
+    cv::Point2d lean{0, 0};
+    EdgeScore edge;          // Evaluate() at the result (roofs not scored)
+    int rounds = 0;          // relocations kept
+    double moved_px = 0;     // MeanGap between the given pose and the result
+  };
+  Relocation Relocate(const cv::Matx33d& photo_to_depth, cv::Point2d lean, bool perspective) const;
+
   // Mean distance, depth px, between where `a` and `b` map the photo points
   // that `a` puts on the outline samples in view (every stride-th sample):
   // how far apart two answers are where the evidence lies. 0 when no sample
@@ -175,6 +207,8 @@ class EdgeEvidence {
     int region = 0;    // index of its outline
     float h = 0;       // its outline's height above the ground, metres
   };
+  bool RelocateOnce(const cv::Matx33d& photo_to_depth, cv::Point2d lean, bool perspective, cv::Matx33d* T,
+                    cv::Point2d* lean_out) const;
   double OnEdge(const cv::Matx33d& depth_to_image, cv::Point2d lean, double offset_px, double search_px, int* points,
                 const cv::Rect2d* support = nullptr, std::vector<double>* region_sum = nullptr,
                 std::vector<int>* region_count = nullptr, int stride = 1) const;

@@ -90,6 +90,7 @@ struct OutlineSearchResult {
   int outlines_in_view = 0;          // outlines with >= 10 samples inside the photo at the answer
   EdgeScore edge;                    // image check at the answer (when evidence given)
   cv::Point2d lean_px_per_m{0, 0};   // the photo's lean estimated by the final refinement (edge_evidence.h)
+  double relocated_px = 0;           // how far EdgeEvidence::Relocate moved the answer (depth px; 0: kept)
   int poses = 0;                     // (rotation, scale) pairs correlated
   double ambiguity_px = 0;           // set by RegisterAerial: the mean gap to an equally good pose
                                      //   (AmbiguityGap, register.h) when it judged the answer

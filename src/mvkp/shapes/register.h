@@ -150,6 +150,8 @@ struct Registration {
   cv::Point2d lean_px_per_m{0, 0};    // the photo's lean (edge_evidence.h), depth px per metre of
                                       //   height: roofs show this far from their footprints; the
                                       //   transform maps the ground. Zero unless estimated.
+  double relocated_px = 0;            // how far EdgeEvidence::Relocate moved the answer (mean over
+                                      //   the outlines in view, depth px); 0 when it kept it
 };
 
 // `evidence` (optional, not owned): the photo and all depth outlines (see
