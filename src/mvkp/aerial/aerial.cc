@@ -195,6 +195,22 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
       out.outline.reason = "no registration found: " + out.outline.reason + "; its pose " + shape;
     }
   }
+  // The roofs, as on the region routes (edge_evidence.h, roof_veto): seed
+  // 117's photo of other ground was registered here with 6 of 8 outlines on
+  // edges (contrast 2.14) and roofs of 0.99 over 7 outlines; the 38 right
+  // outline-search answers of six seeds pass (docs/aerial.md).
+  if (out.outline.ok && evidence) {
+    evidence->ScoreRoofs(out.outline.photo_to_depth, out.outline.lean_px_per_m, &out.outline.edge);
+    if (!evidence->Accepts(out.outline.edge)) {
+      out.outline.ok = false;
+      out.outline.roof_vetoed = true;
+      out.outline.reason = "no registration found: " + out.outline.reason +
+                           cv::format("; its outlines do not set roofs apart from the ground (roof contrast %.2f < "
+                                      "%.2f over %d outlines)",
+                                      out.outline.edge.roof_contrast, evidence->options().roof_veto,
+                                      out.outline.edge.roof_regions);
+    }
+  }
   // Determined, as on the region route (RegistrationOptions::ambiguity_px),
   // whatever the model: on large tiles (seed 108, working photo) it refused
   // two answers 5.3 and 9.2 px off, right near the buildings that anchored

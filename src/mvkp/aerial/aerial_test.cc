@@ -133,6 +133,28 @@ TEST(Aerial, OutlineSearchPosesHaveANadirShape) {
   EXPECT_EQ(NadirShape(cv::Matx33d(0.7, 0, 0, 0, 0.5, 0, 0, 0, 1), extent, off), "");
 }
 
+// Issue 21 (seed 117, suburb): a photo of other ground that the outline
+// search registered with 6 of 8 outlines on edges (contrast 2.14) and roofs
+// of 0.99 over 7 outlines. The roof veto of the region routes now judges
+// the outline search's answers too. (`mvkp synth-city --style suburb
+// --no-overlap --seed 1117`, scene 9; another compiler's rounding draws
+// another scene, which must be refused as well.)
+TEST(Aerial, OutlineSearchAnswersPassTheRoofVeto) {
+  CityOptions o;
+  o.style = "suburb";
+  o.overlap = false;
+  const City c = MakeCity(o, 1117003360u);
+  const AerialRegistration r = RegisterAerial(c.depth, c.photo);
+  EXPECT_FALSE(r.registration.ok) << "other ground registered (" << r.registration.reason << ")";
+  EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
+  if (r.outline_search_ran && r.outline.roof_vetoed) {
+    // refused for its roofs: scored over enough outlines, below the veto
+    EXPECT_GE(r.outline.edge.roof_regions, EdgeEvidenceOptions{}.min_roof_regions);
+    EXPECT_LT(r.outline.edge.roof_contrast, EdgeEvidenceOptions{}.roof_veto);
+    EXPECT_NE(r.registration.reason.find("roofs apart from the ground"), std::string::npos) << r.registration.reason;
+  }
+}
+
 // Options under which the region routes find nothing (1000 region pairs
 // needed, no single-pair route): kAuto then falls back to the outline
 // search on whatever scene a compiler's rounding draws.

@@ -91,6 +91,7 @@ struct OutlineSearchResult {
   EdgeScore edge;                    // image check at the answer (when evidence given)
   cv::Point2d lean_px_per_m{0, 0};   // the photo's lean estimated by the final refinement (edge_evidence.h)
   double relocated_px = 0;           // how far EdgeEvidence::Relocate moved the answer (depth px; 0: kept)
+  bool roof_vetoed = false;          // set by RegisterAerial: refused by the roof veto (roof_veto, edge_evidence.h)
   int poses = 0;                     // (rotation, scale) pairs correlated
   double ambiguity_px = 0;           // set by RegisterAerial: the mean gap to an equally good pose
                                      //   (AmbiguityGap, register.h) when it judged the answer
