@@ -225,6 +225,20 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
                                       o.registration.ambiguity_px, out.outline.ambiguity_px);
     }
   }
+  // The accepted answer relocated (EdgeEvidence::Relocate), as on the
+  // region routes: kept when the moved pose is a nadir photo's and passes
+  // the roofs too.
+  if (out.outline.ok && evidence) {
+    const EdgeEvidence::Relocation rl =
+        evidence->Relocate(out.outline.photo_to_depth, out.outline.lean_px_per_m, so.perspective);
+    EdgeScore e = rl.edge;
+    if (rl.moved && NadirShape(rl.photo_to_depth, extent, o.registration).empty()) {
+      evidence->ScoreRoofs(rl.photo_to_depth, rl.lean, &e);
+      if (evidence->Accepts(e))
+        out.outline.photo_to_depth = rl.photo_to_depth, out.outline.lean_px_per_m = rl.lean, out.outline.edge = e,
+        out.outline.relocated_px = rl.moved_px;
+    }
+  }
   out.outline_search_ran = true;
   out.outline_search_ms = ts.ElapsedMs();
   if (out.outline.ok || !regions) {

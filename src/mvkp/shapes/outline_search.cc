@@ -529,11 +529,6 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
       if (evidence->Accepts(e) && e.regions_on_edges >= res.edge.regions_on_edges)
         res.photo_to_depth = T3, res.lean_px_per_m = lean, res.edge = e;
     }
-    // a wider basin (EdgeEvidence::Relocate), as on the region routes
-    const EdgeEvidence::Relocation rl = evidence->Relocate(res.photo_to_depth, res.lean_px_per_m, o.perspective);
-    if (rl.moved)
-      res.photo_to_depth = rl.photo_to_depth, res.lean_px_per_m = rl.lean, res.edge = rl.edge,
-      res.relocated_px = rl.moved_px;
   }
   res.model = model;
   res.score = best.z;
