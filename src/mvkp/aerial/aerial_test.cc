@@ -104,6 +104,15 @@ TEST(Aerial, OutlineSearchRefusesOtherGround) {
   }
 }
 
+// Registers a photo of other ground with the default options and expects
+// "no registration found".
+AerialRegistration ExpectRefused(const City& c) {
+  AerialRegistration r = RegisterAerial(c.depth, c.photo);
+  EXPECT_FALSE(r.registration.ok) << "other ground registered (" << r.registration.reason << ")";
+  EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
+  return r;
+}
+
 // Issue 21 (fresh seed 107, small tiles): a photo of other ground where the
 // outline search found a pose that puts 3 outlines on edges by tilting and
 // stretching the photo (divisor change 0.40, anisotropy 1.58). Every route
@@ -118,10 +127,7 @@ TEST(Aerial, OutlineSearchPosesHaveANadirShape) {
   o.trees = 4;
   o.style = "dense";
   o.overlap = false;
-  const City c = MakeCity(o, 1107003322u);
-  const AerialRegistration r = RegisterAerial(c.depth, c.photo);
-  EXPECT_FALSE(r.registration.ok) << "other ground registered (" << r.registration.reason << ")";
-  EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
+  ExpectRefused(MakeCity(o, 1107003322u));
   // the public check itself: a similarity passes; a stretch or a steep tilt does not
   const cv::Rect2d extent(0, 0, 800, 600);
   const RegistrationOptions ro;
@@ -144,9 +150,7 @@ TEST(Aerial, OutlineSearchAnswersPassTheRoofVeto) {
   o.style = "suburb";
   o.overlap = false;
   const City c = MakeCity(o, 1117003360u);
-  const AerialRegistration r = RegisterAerial(c.depth, c.photo);
-  EXPECT_FALSE(r.registration.ok) << "other ground registered (" << r.registration.reason << ")";
-  EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
+  const AerialRegistration r = ExpectRefused(c);
   if (r.outline_search_ran && r.outline.roof_vetoed) {
     // refused for its roofs: scored over enough outlines, below the veto
     EXPECT_GE(r.outline.edge.roof_regions, EdgeEvidenceOptions{}.min_roof_regions);
