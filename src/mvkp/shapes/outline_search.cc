@@ -497,16 +497,32 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   std::sort(refined.begin(), refined.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
   const size_t bi = 0;
   Pose best = refined[bi];
+  // Poses are told apart where the photo is: over the outline samples the
+  // best pose puts in view (every 4th). The tile's corners (`probe`) lie far
+  // outside a photo of part of the tile, where a small rotation or scale
+  // about the photo's outlines is magnified: the same answer counted as its
+  // own runner-up, and a perspective refinement that moved the outlines
+  // 2-4 px looked like 11-14 px (issue 21).
+  std::vector<cv::Point2d> view_probe;
+  {
+    const double pw = photo.cols / ps, ph = photo.rows / ps;
+    const cv::Matx33d D = best.T.inv();
+    for (size_t i = 0; i < samples.size(); i += 4) {
+      const cv::Point2d p = Map(D, samples[i].q);
+      if (p.x >= 0 && p.y >= 0 && p.x < pw && p.y < ph) view_probe.emplace_back(samples[i].q);
+    }
+    if (view_probe.size() < probe.size()) view_probe = probe;
+  }
   double runner = 0;
   for (size_t i = 0; i < refined.size(); ++i)
-    if (i != bi && PoseDistance(best.T, refined[i].T, probe) > o.distinct_px) runner = std::max(runner, refined[i].z);
+    if (i != bi && PoseDistance(best.T, refined[i].T, view_probe) > o.distinct_px) runner = std::max(runner, refined[i].z);
 
   // final refinement on the image check, which also gives its verdict
   std::string model = "similarity";
   double moved = 0;  // by the image check's refinement (depth px)
   if (evidence) {
     const cv::Matx33d T2 = evidence->Refine(best.T, o.perspective);
-    moved = PoseDistance(best.T, T2, probe);
+    moved = PoseDistance(best.T, T2, view_probe);
     if (moved < o.distinct_px) {
       best.T = T2;
       if (o.perspective) model = "perspective";
@@ -524,7 +540,7 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   if (evidence && evidence->Accepts(res.edge)) {  // never what makes an answer pass
     cv::Point2d lean;
     const cv::Matx33d T3 = evidence->Refine(best.T, o.perspective, true, nullptr, &lean);
-    if (lean != cv::Point2d() && PoseDistance(best.T, T3, probe) < o.distinct_px) {
+    if (lean != cv::Point2d() && PoseDistance(best.T, T3, view_probe) < o.distinct_px) {
       const EdgeScore e = evidence->Evaluate(T3, lean);
       if (evidence->Accepts(e) && e.regions_on_edges >= res.edge.regions_on_edges)
         res.photo_to_depth = T3, res.lean_px_per_m = lean, res.edge = e;
