@@ -424,6 +424,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "the photo, a homography fitted to it; kept when the outlines lie on edges >= 5 % better; 0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0, 10));
+  c->add_option("--relocate-lean-gain", a->edge.relocate_lean_gain,
+                "image check: an accepted answer's lean jump (other leans held while the transform is refined) "
+                "is kept when the outlines lie on edges this much better (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   c->add_flag("!--no-joint-lean", a->opt.joint_lean_fit,
               "estimate the lean from the lean-free fit only (no second start from the region pairs refitted "
               "with the lean)");

@@ -219,7 +219,8 @@ void BindAerial(py::module_& m) {
       .def_property_readonly(
           "relocated_px", [](const PyRegistration& r) { return r.reg.relocated_px; },
           "How far the relocation (EdgeEvidence::Relocate) moved the answer, mean depth px over the outlines in "
-          "view; 0 when it kept it (EdgeEvidenceOptions.relocate_rounds = 0 turns it off).")
+          "view; 0 when it kept it (EdgeEvidenceOptions.relocate_rounds = 0 and relocate_lean_gain = 0 turn it "
+          "off).")
       .def_property_readonly("edge", [](const PyRegistration& r) -> py::object {
         if (!r.reg.edge.enough) return py::none();
         py::dict d;

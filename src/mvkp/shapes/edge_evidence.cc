@@ -33,9 +33,10 @@ void EdgeEvidenceOptions::Check() const {
        "EdgeEvidenceOptions: roof_accept, roof_veto, roof_veto_below >= 0, min_contrast_with_roofs > 0");
   need(relocate_radius_px > 0 && relocate_radius_px <= 200 && relocate_grid_px > 0 &&
            relocate_grid_px <= relocate_radius_px && relocate_cells >= 2 && relocate_cells <= 16 &&
-           relocate_min_gain >= 0 && relocate_rounds >= 0,
+           relocate_min_gain >= 0 && relocate_rounds >= 0 && relocate_lean_gain >= 0 && relocate_lean_outlines >= 1,
        "EdgeEvidenceOptions: relocate_radius_px in (0, 200], relocate_grid_px in (0, relocate_radius_px], "
-       "relocate_cells in [2, 16], relocate_min_gain >= 0, relocate_rounds >= 0");
+       "relocate_cells in [2, 16], relocate_min_gain >= 0, relocate_rounds >= 0, relocate_lean_gain >= 0, "
+       "relocate_lean_outlines >= 1");
 }
 
 namespace {
@@ -353,6 +354,28 @@ double EdgeEvidence::MeanGap(const cv::Matx33d& a, const cv::Matx33d& b, int str
 
 cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
                                  const cv::Rect2d* support, cv::Point2d* lean) const {
+  return RefineImpl(photo_to_depth, perspective, sharp, support, lean, /*estimate_lean=*/true);
+}
+
+bool EdgeEvidence::LeanDetermined(const cv::Matx33d& D0, cv::Point2d lean0, const cv::Rect2d* support) const {
+  if (!has_heights_) return false;
+  const float w = float(grey_.cols), h = float(grey_.rows);
+  std::vector<float> region_h(size_t(regions_), -1.f);  // height of each outline in view
+  for (const Sample& s : samples_) {
+    if (support && !support->contains(cv::Point2d(s.q))) continue;
+    const cv::Point2d p = Map(D0, cv::Point2d(s.q) + lean0 * double(s.h));
+    if (p.x < 0 || p.y < 0 || p.x >= w || p.y >= h) continue;
+    region_h[size_t(s.region)] = s.h;
+  }
+  int k = 0;
+  float h0 = std::numeric_limits<float>::infinity(), h1 = -h0;
+  for (float rh : region_h)
+    if (rh >= 0) ++k, h0 = std::min(h0, rh), h1 = std::max(h1, rh);
+  return k >= opt_.min_lean_outlines && h1 - h0 >= opt_.min_lean_height_spread_m;
+}
+
+cv::Matx33d EdgeEvidence::RefineImpl(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
+                                     const cv::Rect2d* support, cv::Point2d* lean, bool estimate_lean) const {
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   // the outline points in view define the frame of the correction
   int n = 0;
@@ -361,14 +384,12 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
   if (OnEdge(D0, lean0, 0, 0, &n, support), n < opt_.min_points) return photo_to_depth;
   const float w = float(grey_.cols), h = float(grey_.rows);
   cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
-  std::vector<float> region_h(size_t(regions_), -1.f);  // height of each outline in view
   for (const Sample& s : samples_) {
     if (support && !support->contains(cv::Point2d(s.q))) continue;
     const cv::Point2d p = Map(D0, cv::Point2d(s.q) + lean0 * double(s.h));
     if (p.x < 0 || p.y < 0 || p.x >= w || p.y >= h) continue;
     lo.x = std::min(lo.x, double(s.q.x)), lo.y = std::min(lo.y, double(s.q.y));
     hi.x = std::max(hi.x, double(s.q.x)), hi.y = std::max(hi.y, double(s.q.y));
-    region_h[size_t(s.region)] = s.h;
   }
   if (!(hi.x - lo.x > 4 && hi.y - lo.y > 4)) return photo_to_depth;
   // Correction C in depth space, T' = C * T, given by where it moves the 4
@@ -387,15 +408,7 @@ cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspec
   constexpr int kParams = 10;
   // The lean needs outlines of several heights in view: with few, or of
   // like heights, it is a translation with two more ways to fit noise.
-  bool lean_determined = false;
-  if (lean && has_heights_) {
-    int k = 0;
-    float h0 = std::numeric_limits<float>::infinity(), h1 = -h0;
-    for (float rh : region_h)
-      if (rh >= 0) ++k, h0 = std::min(h0, rh), h1 = std::max(h1, rh);
-    lean_determined = k >= opt_.min_lean_outlines && h1 - h0 >= opt_.min_lean_height_spread_m;
-  }
-  const bool with_lean = lean_determined && opt_.max_lean_px_per_m > 0;
+  const bool with_lean = lean && estimate_lean && opt_.max_lean_px_per_m > 0 && LeanDetermined(D0, lean0, support);
   auto lean_of = [&](const std::vector<double>& d) {
     return with_lean ? lean0 + cv::Point2d(d[8], d[9]) * (1.0 / ref_height_) : lean0;
   };
@@ -548,8 +561,73 @@ EdgeEvidence::Relocation EdgeEvidence::Relocate(const cv::Matx33d& photo_to_dept
     if (!Accepts(e) || e.points < out.edge.points * 0.95 || e.on < (1 + opt_.relocate_min_gain) * out.edge.on) break;
     out.photo_to_depth = T, out.lean = l, out.edge = e, out.moved = true, ++out.rounds;
   }
+  if (opt_.relocate_lean_gain > 0) {
+    cv::Matx33d T;
+    cv::Point2d l;
+    EdgeScore e;
+    if (LeanJump(out.photo_to_depth, out.lean, perspective, out.edge, &T, &l, &e))
+      out.photo_to_depth = T, out.lean = l, out.edge = e, out.moved = true, out.lean_jumped = true;
+  }
   if (out.moved) out.moved_px = MeanGap(photo_to_depth, out.photo_to_depth);
   return out;
+}
+
+bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean, bool perspective,
+                            const EdgeScore& e0, cv::Matx33d* T_out, cv::Point2d* lean_out, EdgeScore* e_out) const {
+  const double lm = opt_.max_lean_px_per_m;
+  const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
+  if (lm <= 0 || !e0.enough || e0.regions < opt_.relocate_lean_outlines ||
+      !LeanDetermined(S * photo_to_depth.inv(), lean, nullptr))
+    return false;
+  std::vector<cv::Point2d> leans;
+  if (lean != cv::Point2d()) leans.emplace_back(0, 0);
+  for (double r : {0.35, 0.7})
+    for (int k = 0; k < 8; ++k) {
+      const cv::Point2d c = lean + r * lm * cv::Point2d(std::cos(k * CV_PI / 4), std::sin(k * CV_PI / 4));
+      if (std::hypot(c.x, c.y) <= lm) leans.push_back(c);
+    }
+  // no fewer outlines and samples in view: don't win by leaving the photo
+  auto fair = [&](const EdgeScore& e) { return e.enough && e.regions >= e0.regions && e.points >= 0.95 * e0.points; };
+  bool found = false;
+  EdgeScore best;
+  for (cv::Point2d c : leans) {
+    const cv::Matx33d T = RefineImpl(photo_to_depth, perspective, true, nullptr, &c, /*estimate_lean=*/false);
+    const EdgeScore e = Evaluate(T, c);
+    if (fair(e) && e.on >= (1 + opt_.relocate_lean_gain) * e0.on && (!found || e.on > best.on))
+      found = true, best = e, *T_out = T, *lean_out = c;
+  }
+  if (!found) return false;
+  // the lean refined with the transform from there
+  cv::Point2d l = *lean_out;
+  const cv::Matx33d T2 = Refine(*T_out, perspective, true, nullptr, &l);
+  const EdgeScore e2 = Evaluate(T2, l);
+  if (fair(e2) && e2.on >= best.on) *T_out = T2, *lean_out = l, best = e2;
+  // The lean polished: the rings are 0.28 max_lean_px_per_m apart, and
+  // Refine keeps a lean change only when it earns min_lean_gain. A pattern
+  // search over the lean, the roofs at the reference height held in place
+  // (the transform shifted by ref_height x the lean's change).
+  for (double st = 0.1 * lm; st >= 0.0125 * lm; st *= 0.5)
+    for (int moves = 0; moves < 8; ++moves) {
+      bool improved = false;
+      for (int k = 0; k < 8; ++k) {
+        const cv::Point2d d = st * cv::Point2d(std::cos(k * CV_PI / 4), std::sin(k * CV_PI / 4));
+        const cv::Point2d c = *lean_out + d;
+        if (std::hypot(c.x, c.y) > lm) continue;
+        const cv::Matx33d T = cv::Matx33d(1, 0, ref_height_ * d.x, 0, 1, ref_height_ * d.y, 0, 0, 1) * *T_out;
+        const EdgeScore e = Evaluate(T, c);
+        if (fair(e) && e.on > best.on) *T_out = T, *lean_out = c, best = e, improved = true;
+      }
+      if (!improved) break;
+    }
+  // the roofs, independent of the edges, must agree
+  EdgeScore r0 = e0;
+  ScoreRoofs(photo_to_depth, lean, &r0);
+  ScoreRoofs(*T_out, *lean_out, &best);
+  if (r0.roof_regions < opt_.min_roof_regions || best.roof_regions < opt_.min_roof_regions ||
+      best.roof_contrast < r0.roof_contrast || !Accepts(best))
+    return false;
+  *e_out = best;
+  return true;
 }
 
 cv::Matx33d EdgeEvidence::RefineOutward(const cv::Matx33d& photo_to_depth, const cv::Rect2d& seed, bool perspective,

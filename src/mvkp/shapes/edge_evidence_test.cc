@@ -225,6 +225,51 @@ TEST(EdgeEvidence, RefineEstimatesTheLeanOfAConventionalOrthophoto) {
   EXPECT_THROW(EdgeEvidence(s.photo, 1.0, footprints, {}, std::vector<float>(3, 10.f)), Error);
 }
 
+// Relocate's lean jump: an answer refined at a wrong lean (a fit that
+// traded lean for translation) is moved to the lean the roofs show and the
+// right ground mapping; from the right answer it does not move; with
+// relocate_lean_gain = 0 it is off.
+TEST(EdgeEvidence, RelocateJumpsOutOfAWrongLean) {
+  const Scene s = MakeScene(11);
+  const cv::Point2d lean(0.30, -0.22);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U(0, 1);
+  std::vector<float> heights;
+  std::vector<Contour> footprints;
+  for (const auto& roof : s.depth_outlines) {
+    const float h = float(5 + 35 * U(rng));
+    heights.push_back(h);
+    footprints.push_back(Footprint(roof, h, lean));
+  }
+  // the transform refined with the lean held at a wrong value
+  EdgeEvidenceOptions held_lean;
+  held_lean.max_lean_px_per_m = 0;
+  const EdgeEvidence held(s.photo, 1.0, footprints, held_lean, heights);
+  cv::Point2d wrong = lean + cv::Point2d(-0.45, -0.40);
+  const cv::Matx33d trapped = held.Refine(s.photo_to_depth, false, true, nullptr, &wrong);
+  ASSERT_GT(MaxCornerError(trapped, s.photo_to_depth), 3.0);
+  EdgeEvidenceOptions o;
+  o.relocate_rounds = 0;  // the lean jump alone
+  const EdgeEvidence ev(s.photo, 1.0, footprints, o, heights);
+  const EdgeEvidence::Relocation r = ev.Relocate(trapped, wrong, /*perspective=*/false);
+  EXPECT_TRUE(r.moved);
+  EXPECT_TRUE(r.lean_jumped);
+  EXPECT_LT(MaxCornerError(r.photo_to_depth, s.photo_to_depth), 1.0);
+  EXPECT_NEAR(r.lean.x, lean.x, 0.03);
+  EXPECT_NEAR(r.lean.y, lean.y, 0.03);
+  EXPECT_GE(r.edge.on, (1 + o.relocate_lean_gain) * ev.Evaluate(trapped, wrong).on);
+  // from the right answer it stays
+  const EdgeEvidence::Relocation k = ev.Relocate(s.photo_to_depth, lean, false);
+  EXPECT_FALSE(k.moved);
+  // off
+  o.relocate_lean_gain = 0;
+  const EdgeEvidence off(s.photo, 1.0, footprints, o, heights);
+  EXPECT_FALSE(off.Relocate(trapped, wrong, false).moved);
+  // without heights there is no lean to jump to
+  const EdgeEvidence no_heights(s.photo, 1.0, footprints, EdgeEvidenceOptions{.relocate_rounds = 0});
+  EXPECT_FALSE(no_heights.Relocate(trapped, wrong, false).lean_jumped);
+}
+
 // MeanGap: how far two transforms put the photo points on the outlines in
 // view, in depth px; outlines out of view do not count.
 TEST(EdgeEvidence, MeanGapMeasuresTwoAnswersWhereTheOutlinesAre) {
