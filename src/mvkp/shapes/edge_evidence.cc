@@ -354,7 +354,7 @@ double EdgeEvidence::MeanGap(const cv::Matx33d& a, const cv::Matx33d& b, int str
 
 cv::Matx33d EdgeEvidence::Refine(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
                                  const cv::Rect2d* support, cv::Point2d* lean) const {
-  return RefineImpl(photo_to_depth, perspective, sharp, support, lean, /*estimate_lean=*/true);
+  return RefineImpl(photo_to_depth, perspective, sharp, support, lean, /*estimate_lean=*/true, 1);
 }
 
 bool EdgeEvidence::LeanDetermined(const cv::Matx33d& D0, cv::Point2d lean0, const cv::Rect2d* support) const {
@@ -375,13 +375,15 @@ bool EdgeEvidence::LeanDetermined(const cv::Matx33d& D0, cv::Point2d lean0, cons
 }
 
 cv::Matx33d EdgeEvidence::RefineImpl(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp,
-                                     const cv::Rect2d* support, cv::Point2d* lean, bool estimate_lean) const {
+                                     const cv::Rect2d* support, cv::Point2d* lean, bool estimate_lean,
+                                     int stride) const {
   const cv::Matx33d S(photo_scale_, 0, 0, 0, photo_scale_, 0, 0, 0, 1);
   // the outline points in view define the frame of the correction
   int n = 0;
   const cv::Matx33d D0 = S * photo_to_depth.inv();
   const cv::Point2d lean0 = lean ? *lean : cv::Point2d();
-  if (OnEdge(D0, lean0, 0, 0, &n, support), n < opt_.min_points) return photo_to_depth;
+  if (OnEdge(D0, lean0, 0, 0, &n, support, nullptr, nullptr, stride), n * stride < opt_.min_points)
+    return photo_to_depth;
   const float w = float(grey_.cols), h = float(grey_.rows);
   cv::Point2d lo(1e18, 1e18), hi(-1e18, -1e18);
   for (const Sample& s : samples_) {
@@ -418,8 +420,8 @@ cv::Matx33d EdgeEvidence::RefineImpl(const cv::Matx33d& photo_to_depth, bool per
     if (with_lean && std::hypot(l.x, l.y) > opt_.max_lean_px_per_m) return 0.0;
     const cv::Matx33d T = correction(d) * photo_to_depth;
     int m = 0;
-    const double v = OnEdge(S * T.inv(), l, 0, search, &m, support);
-    return m >= opt_.min_points ? v * std::min(1.0, double(m) / n) : 0.0;  // don't win by leaving the photo
+    const double v = OnEdge(S * T.inv(), l, 0, search, &m, support, nullptr, nullptr, stride);
+    return m * stride >= opt_.min_points ? v * std::min(1.0, double(m) / n) : 0.0;  // don't win by leaving the photo
   };
   std::vector<double> d(kParams, 0.0);
   double best = 0;
@@ -590,13 +592,18 @@ bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
   auto fair = [&](const EdgeScore& e) { return e.enough && e.regions >= e0.regions && e.points >= 0.95 * e0.points; };
   bool found = false;
   EdgeScore best;
+  // Each lean's transform refined (every 2nd outline sample: 17 refits),
+  // the best with all of them.
   for (cv::Point2d c : leans) {
-    const cv::Matx33d T = RefineImpl(photo_to_depth, perspective, true, nullptr, &c, /*estimate_lean=*/false);
+    const cv::Matx33d T = RefineImpl(photo_to_depth, perspective, true, nullptr, &c, /*estimate_lean=*/false, 2);
     const EdgeScore e = Evaluate(T, c);
     if (fair(e) && e.on >= (1 + opt_.relocate_lean_gain) * e0.on && (!found || e.on > best.on))
       found = true, best = e, *T_out = T, *lean_out = c;
   }
   if (!found) return false;
+  *T_out = RefineImpl(*T_out, perspective, true, nullptr, lean_out, /*estimate_lean=*/false, 1);
+  best = Evaluate(*T_out, *lean_out);
+  if (!fair(best) || best.on < (1 + opt_.relocate_lean_gain) * e0.on) return false;
   // the lean refined with the transform from there
   cv::Point2d l = *lean_out;
   const cv::Matx33d T2 = Refine(*T_out, perspective, true, nullptr, &l);
@@ -605,7 +612,11 @@ bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
   // The lean polished: the rings are 0.28 max_lean_px_per_m apart, and
   // Refine keeps a lean change only when it earns min_lean_gain. A pattern
   // search over the lean, the roofs at the reference height held in place
-  // (the transform shifted by ref_height x the lean's change).
+  // (the transform shifted by ref_height x the lean's change), on the edge
+  // response sampled on the outlines themselves (no window: sub-pixel moves
+  // count).
+  int m0 = 0;
+  double sharp = OnEdge(S * T_out->inv(), *lean_out, 0, 0.0, &m0);
   for (double st = 0.1 * lm; st >= 0.0125 * lm; st *= 0.5)
     for (int moves = 0; moves < 8; ++moves) {
       bool improved = false;
@@ -614,11 +625,14 @@ bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
         const cv::Point2d c = *lean_out + d;
         if (std::hypot(c.x, c.y) > lm) continue;
         const cv::Matx33d T = cv::Matx33d(1, 0, ref_height_ * d.x, 0, 1, ref_height_ * d.y, 0, 0, 1) * *T_out;
-        const EdgeScore e = Evaluate(T, c);
-        if (fair(e) && e.on > best.on) *T_out = T, *lean_out = c, best = e, improved = true;
+        int m = 0;
+        const double v = OnEdge(S * T.inv(), c, 0, 0.0, &m);
+        if (m >= m0 && v > sharp) *T_out = T, *lean_out = c, sharp = v, improved = true;
       }
       if (!improved) break;
     }
+  best = Evaluate(*T_out, *lean_out);
+  if (!fair(best) || best.on < (1 + opt_.relocate_lean_gain) * e0.on) return false;
   // the roofs, independent of the edges, must agree
   EdgeScore r0 = e0;
   ScoreRoofs(photo_to_depth, lean, &r0);

@@ -189,7 +189,9 @@ class EdgeEvidence {
   // the ground at lean 0, the truth's lean 0.2-0.3 px/m). Leans on two
   // rings about the answer's (0.35 and 0.7 x max_lean_px_per_m, 8
   // directions) and lean 0 are each held fixed while the transform is
-  // refined; the best is kept, its lean then refined with it, when its
+  // refined (on every 2nd outline sample; the best again on all of them,
+  // then its lean refined with it and polished by a pattern search on the
+  // edge response sampled on the outlines); the result is kept when its
   // edge response beats the answer's by relocate_lean_gain with no fewer
   // outlines and no fewer samples in view, the roofs (ScoreRoofs, the
   // independent evidence) stand apart no less, and the image check accepts
@@ -230,9 +232,10 @@ class EdgeEvidence {
   // Relocate's lean jump: true with the jumped pose when one beats `e0`.
   bool LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean, bool perspective, const EdgeScore& e0,
                 cv::Matx33d* T_out, cv::Point2d* lean_out, EdgeScore* e_out) const;
-  // Refine, with the lean held at *lean unless `estimate_lean`.
+  // Refine, with the lean held at *lean unless `estimate_lean`, scoring
+  // every stride-th outline sample.
   cv::Matx33d RefineImpl(const cv::Matx33d& photo_to_depth, bool perspective, bool sharp, const cv::Rect2d* support,
-                         cv::Point2d* lean, bool estimate_lean) const;
+                         cv::Point2d* lean, bool estimate_lean, int stride) const;
   // The outlines the transform puts in view (inside `support`) determine a
   // lean: at least min_lean_outlines of them, heights spanning
   // min_lean_height_spread_m.
