@@ -91,7 +91,7 @@ struct EdgeEvidenceOptions {
   int relocate_cells = 4;              // cells per side over the outlines in view
   double relocate_min_gain = 0.05;     // a relocated pose is kept when its edge response is this much higher
   int relocate_rounds = 3;             // relocations at most
-  double relocate_lean_gain = 0.03;    // Relocate's lean jump: kept when its edge response is this much
+  double relocate_lean_gain = 0.05;    // Relocate's lean jump: kept when its edge response is this much
                                        //   higher (0: off) ...
   int relocate_lean_outlines = 10;     // ... tried with at least this many outlines in view
   void Check() const;         // throws Error(kInvalidArgument)
