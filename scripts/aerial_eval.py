@@ -20,7 +20,9 @@ Scale convention of the tables: photo px per depth px = 1 / truth "scale"
 5-8 photo px across at 0.5 m depth), 3 a fine one. Bins 0.3-0.5, 0.5-1, 1-2, 2-3.4.
 Counts per bin and per style: success (ok and <= 5 px), WRONG (ok and > 5 px:
 reported as a success but wrong, listed with their errors and scene dirs), no
-answer. `confidence` is shown when register's JSON has it.
+answer. `confidence` is shown when register's JSON has it. A third table counts
+by the ground-truth buildings wholly inside the photo (0-1, 2, 3-5, 6+): how
+much the photo shows to register on.
 
 Per generated scene (mvkp synth-city: ~30 buildings, 1000x1000 depth at
 0.5 m, photo at any rotation, scale 0.3-3, mild perspective):
@@ -81,6 +83,10 @@ def corner_error(H_est, H_true, corners_depth, photo_size):
 
 SCALE_BINS = [(0.3, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 3.4)]
 NEW_STYLES = ["suburb", "dense", "civic"]
+# Ground-truth buildings wholly in the photo (inclusive bins): with 0-1 a
+# pose rests on parts of buildings, or on one outline that fits any similar
+# rectangle.
+BUILDING_BINS = [(0, 1), (2, 2), (3, 5), (6, 10**9)]
 
 
 def styles_of(arg):
@@ -149,6 +155,17 @@ def print_tables(rows, out_json):
         t = tally(sel)
         out_json["per_scale_bin"][name] = t
         print(line(name, t))
+    out_json["per_buildings_in_view"] = {}
+    print("\nper buildings in view (ground-truth footprints wholly inside the photo)")
+    print(head)
+    for lo, hi in BUILDING_BINS:
+        sel = [r for r in rows if lo <= r.get("buildings_in_view", 0) <= hi]
+        if not sel:
+            continue
+        name = "%d" % lo if lo == hi else ("%d+" % lo if hi > 999 else "%d-%d" % (lo, hi))
+        t = tally(sel)
+        out_json["per_buildings_in_view"][name] = t
+        print(line(name, t))
     wrong = [r for r in rows if r.get("ok") and not r["success"]]
     out_json["wrong_list"] = [{"dir": r["dir"], "style": r["style"], "corner_error": r.get("corner_error"),
                                "roof_corner_error": r.get("roof_corner_error"),
@@ -169,6 +186,18 @@ def print_tables(rows, out_json):
             if r.get("confidence") is not None:
                 kind = "success" if r["success"] else "WRONG" if r.get("ok") else "none"
                 print("  %-40s %-8s %.3g" % (r["dir"], kind, r["confidence"]))
+
+
+def buildings_in_view(truth):
+    """Ground-truth buildings whose whole footprint the photo shows: what a
+    registration can rest on (1 building fits any similar rectangle)."""
+    Hi = np.linalg.inv(h_of(truth["photo_to_depth"]))
+    w, h = truth["photo_size"]
+    n = 0
+    for b in truth.get("buildings", []):
+        p = apply(Hi, np.array(b["footprint"], dtype=np.float64).reshape(-1, 2))
+        n += bool(((p[:, 0] >= 0) & (p[:, 0] <= w - 1) & (p[:, 1] >= 0) & (p[:, 1] <= h - 1)).all())
+    return n
 
 
 def normalised_depth(depth):
@@ -304,7 +333,8 @@ def main():
             run_json([a.mvkp, "register", os.path.join(d, "depth.tif"), os.path.join(d, "photo.png"), "--json",
                       "--draw", os.path.join(d, "register.png")] + xargs)
         row = {"scene": i, "scale": truth["scale"], "rotation_deg": truth["rotation_deg"],
-               "depth_overlap": truth["depth_overlap"], "style": style, "dir": d}
+               "depth_overlap": truth["depth_overlap"], "style": style, "dir": d,
+               "buildings_in_view": buildings_in_view(truth)}
         if j is None:
             row.update(ok=False, error=err)
         else:
