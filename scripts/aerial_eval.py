@@ -268,6 +268,8 @@ def main():
     ap.add_argument("--real", default=os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "aerial", "montpellier"))
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--draw", type=int, default=4, help="draw the registration of the first N scenes (register.png)")
+    ap.add_argument("--synth-args", default="", help="extra arguments for `mvkp synth-city` (one string), e.g. "
+                    "'--sun-elevation 90' for the same scenes without shadows")
     ap.add_argument("--register-args", default="", help="extra arguments for every `mvkp register` (one string)")
     ap.add_argument("--style", default="classic", help="classic, suburb, dense, civic, mix (the three new ones) or a "
                     "comma list; several styles are cycled by scene index")
@@ -292,6 +294,7 @@ def main():
     if a.buildings:
         lo, _, hi = a.buildings.partition("-")
         gen += ["--buildings", lo] + (["--max-buildings", hi] if hi else [])
+    gen += a.synth_args.split()
     n_styles = len(styles)
     for si, st in enumerate(styles):
         n_st = len(range(si, a.n, n_styles))

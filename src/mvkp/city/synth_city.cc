@@ -1302,8 +1302,11 @@ City MakeCity(const CityOptions& o, std::uint64_t seed) {
   Scene s;
   s.res = o.res_m;
   s.tex_seed = r.Next();
-  s.sun_az = o.sun_azimuth_deg >= 0 ? o.sun_azimuth_deg : r.U(0, 360);
-  s.sun_el = o.sun_elevation_deg >= 0 ? o.sun_elevation_deg : r.U(30, 65);
+  // drawn whether or not they are given: a scene with another sun is the
+  // same scene (the shadows' effect can be measured alone)
+  const double sun_az = r.U(0, 360), sun_el = r.U(30, 65);
+  s.sun_az = o.sun_azimuth_deg >= 0 ? o.sun_azimuth_deg : sun_az;
+  s.sun_el = o.sun_elevation_deg >= 0 ? o.sun_elevation_deg : sun_el;
   s.lay.alpha = r.U(0, kPi / 2);
   s.lay.ca = std::cos(s.lay.alpha), s.lay.sa = std::sin(s.lay.alpha);
   s.lay.res = o.res_m;

@@ -386,6 +386,25 @@ TEST(CityStyles, SameSeedSameSceneAndStylesDiffer) {
   EXPECT_NE(MakeCity(Styled("suburb"), 4).corners, MakeCity(Styled("dense"), 4).corners);
 }
 
+// The sun is drawn whether or not it is given: the same seed under another
+// sun is the same scene with other shadows, so that an evaluation can
+// measure what the shadows cost (issue 21: near misses pulled onto them).
+TEST(CityStyles, AnotherSunIsTheSameScene) {
+  for (const std::string st : {"classic", "suburb"}) {
+    CityOptions o = Styled(st, 200, 4);
+    const City a = MakeCity(o, 3);
+    o.sun_elevation_deg = 90, o.sun_azimuth_deg = 10;
+    const City b = MakeCity(o, 3);
+    EXPECT_TRUE(SameBits(a.depth, b.depth)) << st;
+    EXPECT_EQ(a.photo_to_depth, b.photo_to_depth) << st;
+    EXPECT_EQ(a.corners, b.corners) << st;
+    EXPECT_EQ(a.lean, b.lean) << st;
+    EXPECT_FALSE(SameBits(a.photo, b.photo)) << st;
+    EXPECT_EQ(b.sun_elevation_deg, 90) << st;
+    EXPECT_NE(a.sun_elevation_deg, 90) << st;
+  }
+}
+
 TEST(CityStyles, UnknownStyleIsRejected) {
   CityOptions o;
   o.style = "gothic";
