@@ -50,8 +50,10 @@ SAN_TEST_ENV = ASAN_OPTIONS=$(SAN_ASAN):allow_user_segv_handler=1 $(SAN_UBSAN_LS
 # tests (AugmentTiming.SiftImage800px is a benchmark, Register.SyntheticCities
 # asserts a mean time; 310 s and 125 s under the sanitizers); and the three
 # slowest correctness tests (440, 210 and 180 s, 25 % of the sanitizer run),
-# whose code the other tests of their components run too.
-SAN_EXCLUDE ?= ^(api_docs|AugmentTiming\.SiftImage800px|Register\.SyntheticCities|Quality\.StableUnderBrightnessAndSizeButNotContrast|MatcherEnvelope\.WeakSteepFitsAlsoTryTheSimulatedTilts|Quality\.SmallLogoOnPlainCanvasIsConcentrated)$$
+# whose code the other tests of their components run too; and
+# Aerial.ARelocationTheEdgesClearlyPreferIsKept (two 1000 x 1000 registrations;
+# Aerial.AnAnswerTheEvidenceDoesNotDetermineIsRefused runs the same relocation).
+SAN_EXCLUDE ?= ^(api_docs|AugmentTiming\.SiftImage800px|Register\.SyntheticCities|Quality\.StableUnderBrightnessAndSizeButNotContrast|MatcherEnvelope\.WeakSteepFitsAlsoTryTheSimulatedTilts|Quality\.SmallLogoOnPlainCanvasIsConcentrated|Aerial\.ARelocationTheEdgesClearlyPreferIsKept)$$
 FUZZ_SECONDS ?= 300
 
 $(SAN_BUILD)/CMakeCache.txt:

@@ -102,6 +102,8 @@ def test_aerial_bad_input(city):
         mvkp.register_aerial(city.depth, city.photo, edge_options=mvkp.EdgeEvidenceOptions(relocate_cells=1))
     with pytest.raises(ValueError, match="relocate_lean_gain"):
         mvkp.register_aerial(city.depth, city.photo, edge_options=mvkp.EdgeEvidenceOptions(relocate_lean_gain=-0.1))
+    with pytest.raises(ValueError, match="relocate_rms_free_gain"):
+        mvkp.register_aerial(city.depth, city.photo, relocate_rms_free_gain=-0.1)
 
 
 @pytest.mark.skipif(not __import__("os").environ.get("MVKP_CLI"), reason="MVKP_CLI not set")

@@ -47,6 +47,7 @@ void RegistrationOptions::Check() const {
   need(grow_tolerance >= 1 && grow_tolerance <= 4, "RegistrationOptions.grow_tolerance in [1, 4]");
   need(perspective_min_pairs >= 4, "RegistrationOptions.perspective_min_pairs must be >= 4");
   need(edge_rms_factor >= 1 && edge_rms_factor <= 10, "RegistrationOptions.edge_rms_factor in [1, 10]");
+  need(relocate_rms_free_gain >= 0 && relocate_rms_free_gain <= 10, "RegistrationOptions.relocate_rms_free_gain in [0, 10]");
   need(principal_tolerance_deg > 0 && principal_tolerance_deg < 45,
        "RegistrationOptions.principal_tolerance_deg in (0, 45)");
 }
@@ -1160,7 +1161,12 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       double rms = 0;
       if (rl.moved) verifier.ClosestPoints(rl.photo_to_depth, pairs, 2 * tol, &rms);
       EdgeScore e = rl.edge;
-      if (rl.moved && rms <= opt.edge_rms_factor * max_rms && NadirShape(rl.photo_to_depth, photo_extent, opt).empty() &&
+      // the RMS bound, unless the edges decide clearly (relocate_rms_free_gain)
+      const bool pairs_hold = rms <= opt.edge_rms_factor * max_rms ||
+                              (opt.relocate_rms_free_gain > 0 && res.edge.enough &&
+                               rl.edge.on >= (1 + opt.relocate_rms_free_gain) * res.edge.on &&
+                               rl.edge.contrast >= res.edge.contrast);
+      if (rl.moved && pairs_hold && NadirShape(rl.photo_to_depth, photo_extent, opt).empty() &&
           RoofVeto(*evidence, rl.photo_to_depth, rl.lean, &e).empty()) {
         f.T = rl.photo_to_depth, res.edge = e, res.lean_px_per_m = rl.lean, res.relocated_px = rl.moved_px;
         f.rms = rms;

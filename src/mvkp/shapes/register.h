@@ -78,6 +78,11 @@ struct RegistrationOptions {
                                       //   inlier_px, and by clamp((pairs - 1) / 5, 0.5, 1): few pairs, tighter)
   double edge_rms_factor = 2.0;       // with image evidence (EdgeEvidence): max RMS = this * the
                                       //   shape-only bound, since the outlines-on-edges test decides
+  double relocate_rms_free_gain = 0.15;  // a relocation (EdgeEvidence::Relocate) must leave the region pairs
+                                      //   within the RMS bound above, unless it puts the outlines on edges
+                                      //   this much better (EdgeScore::on) at no lower edge contrast: pairs
+                                      //   of roof regions the photo segmentation drew with their cast
+                                      //   shadows hold the answer off the edges (issue 21); 0: always bound
   bool edge_refine = true;            // with image evidence: snap the outlines onto the photo edges
   bool joint_lean_fit = true;         // ... and also refine the lean from the region pairs refitted
                                       //   with it (an affine + the lean by least squares)
