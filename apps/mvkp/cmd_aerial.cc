@@ -141,6 +141,7 @@ struct RegisterArgs {
   int photo_max_side = 1200;
   int photo_min_side = AerialOptions{}.photo_min_side;
   double photo_max_upscale = AerialOptions{}.photo_max_upscale;
+  bool shadows = AerialOptions{}.shadows.enabled;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
   RegistrationOptions opt;
@@ -201,6 +202,7 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.photo_max_side = a.photo_max_side;
     ao.photo_min_side = a.photo_min_side;
     ao.photo_max_upscale = a.photo_max_upscale;
+    ao.shadows.enabled = a.shadows;
     ao.registration = a.opt;
     ao.edge = a.edge;
     ao.image_check = a.edge.min_contrast > 0;
@@ -247,6 +249,13 @@ Json RegisterCompute(RegisterArgs& a) {
     } else {
       out["lean_depth_px_per_m"] = nullptr, out["lean_m_per_m"] = nullptr;
     }
+    // cast-shadow compensation (ortho/shadows.h): the step found, in log
+    // B, G, R, and the fraction of the working photo relit
+    out["shadows"] = {{"applied", ar.shadows.applied},
+                      {"log_step_bgr", ar.shadows.applied ? Json{ar.shadows.log_step[0], ar.shadows.log_step[1],
+                                                                 ar.shadows.log_step[2]}
+                                                          : Json(nullptr)},
+                      {"fraction", ar.shadows.fraction}, {"votes", ar.shadows.votes}, {"time_ms", ar.shadows.ms}};
     if (ar.outline_search_ran) {
       const OutlineSearchResult& os = ar.outline;
       out["outline_search"] = {{"ok", os.ok},           {"confidence", os.confidence}, {"score", os.score},
@@ -447,6 +456,9 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_option("--photo-max-upscale", a->photo_max_upscale, "the largest upscaling of --photo-min-side")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 8.0));
+  c->add_flag("--shadow-compensation", a->shadows,
+              "relight cast shadows first: a blue-tinted shadow step found in the photo (ortho/shadows.h; "
+              "experimental, off by default: docs/aerial.md)");
   c->callback([a, code] { *code = RunRegister(*a); });
 }
 

@@ -81,6 +81,7 @@ struct PyRegistration {
   std::string method;       // register_aerial: "regions" | "single-pair" | "outlines" ("" when not registered)
   double confidence = 0;    // register_aerial: [0, 1] of the answer
   double photo_upscale = 1;  // register_aerial: the photo regions' segmentation size / the working size
+  ShadowCompensation shadows;  // register_aerial: the cast-shadow compensation (ortho/shadows.h)
 };
 
 }  // namespace
@@ -254,6 +255,17 @@ void BindAerial(py::module_& m) {
       .def_readonly("photo_segmentation_upscale", &PyRegistration::photo_upscale,
                     "register_aerial: 1, or the factor a coarse photo was segmented upscaled by for the regions "
                     "of the answer (photo_min_side)")
+      .def_property_readonly("shadows", [](const PyRegistration& r) {
+        py::dict d;
+        d["applied"] = r.shadows.applied;
+        d["log_step_bgr"] = r.shadows.applied ? py::object(py::make_tuple(r.shadows.log_step[0], r.shadows.log_step[1],
+                                                                          r.shadows.log_step[2]))
+                                              : py::object(py::none());
+        d["fraction"] = r.shadows.fraction;
+        d["votes"] = r.shadows.votes;
+        return d;
+      }, "register_aerial: the cast-shadow compensation: applied, the shadow step found (log B, G, R; None when "
+         "not applied), the fraction of the working photo relit, the edge votes for the step")
       .def_property_readonly("lean_depth_px_per_m", [](const PyRegistration& r) -> py::object {
         if (!r.reg.ok) return py::none();
         return py::make_tuple(r.reg.lean_px_per_m.x, r.reg.lean_px_per_m.y);
@@ -312,7 +324,7 @@ void BindAerial(py::module_& m) {
       "register_aerial",
       [](py::handle depth, py::handle photo, int photo_max_side, int photo_min_side, py::handle depth_options,
          py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
-         double photo_res_m, double depth_res_m, py::kwargs kw) {
+         double photo_res_m, double depth_res_m, bool shadow_compensation, py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -341,6 +353,7 @@ void BindAerial(py::module_& m) {
                       : method == "outlines" ? AerialOptions::Method::kOutlines : AerialOptions::Method::kAuto;
           ao.photo_res_m = photo_res_m;
           ao.depth_res_m = depth_res_m;
+          ao.shadows.enabled = shadow_compensation;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
@@ -350,6 +363,7 @@ void BindAerial(py::module_& m) {
           out->method = ar.method;
           out->confidence = out->reg.ok ? ar.confidence : 0.0;
           out->photo_upscale = ar.photo_upscale;
+          out->shadows = ar.shadows;
           outline_ms = ar.outline_search_ms;
           total_ms = total.ElapsedMs();
         }
@@ -365,7 +379,7 @@ void BindAerial(py::module_& m) {
       py::arg("photo_min_side") = AerialOptions{}.photo_min_side,
       py::arg("depth_options") = py::none(), py::arg("optical_options") = py::none(), py::arg("edge_options") = py::none(),
       py::arg("options") = py::none(), py::arg("method") = "auto", py::arg("photo_res_m") = 0.0,
-      py::arg("depth_res_m") = 0.0,
+      py::arg("depth_res_m") = 0.0, py::arg("shadow_compensation") = AerialOptions{}.shadows.enabled,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
@@ -373,8 +387,10 @@ void BindAerial(py::module_& m) {
       "OpticalSegmentOptions. method: 'auto' (regions, then the outline search when they find nothing), "
       "'regions' or 'outlines'; photo_res_m / depth_res_m (metres per pixel, 0 unknown) narrow the outline "
       "search's scales. photo_min_side (1200; 0 off): a smaller photo is also segmented upscaled, for when its "
-      "own size finds nothing (photo_segmentation_upscale says which answered). The result's method and "
-      "confidence say which method answered and how surely.");
+      "own size finds nothing (photo_segmentation_upscale says which answered). shadow_compensation (False; "
+      "experimental): blue-tinted cast shadows found in the photo are relit first (the result's shadows says "
+      "what was done). "
+      "The result's method and confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)
   py::class_<ViewRegistrar, std::shared_ptr<ViewRegistrar>>(

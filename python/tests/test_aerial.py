@@ -89,6 +89,19 @@ def test_register_aerial_coarse_photo_upscaled():
         mvkp.register_aerial(c.depth, c.photo, photo_min_side=-1)
 
 
+def test_shadow_compensation(city):
+    # opt-in (experimental): off by default; on, make_city's photo (cast
+    # shadows under a random sun) gets its step found and part of it relit
+    off = mvkp.register_aerial(city.depth, city.photo)
+    assert set(off.shadows) == {"applied", "log_step_bgr", "fraction", "votes"}
+    assert not off.shadows["applied"] and off.shadows["log_step_bgr"] is None and off.shadows["fraction"] == 0
+    s = mvkp.register_aerial(city.depth, city.photo, shadow_compensation=True).shadows
+    assert s["applied"] and s["votes"] >= 40
+    b, g, red = s["log_step_bgr"]
+    assert red <= g + 0.02 and g <= b + 0.02 and b < 0  # blue drops least
+    assert 0 < s["fraction"] < 0.4
+
+
 def test_aerial_bad_input(city):
     with pytest.raises(ValueError, match="float32"):
         mvkp.segment_depth(city.photo)

@@ -28,6 +28,7 @@ void AerialOptions::Check() const {
           "AerialOptions: large_tile_regions >= 0, large_tile_template_radius >= 8, large_tile_min_on_edges in [0, 1]");
   depth.Check();
   optical.Check();
+  shadows.Check();
   edge.Check();
   registration.Check();
   outline.Check();
@@ -64,6 +65,9 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     cv::resize(photo, small, cv::Size(), f, f, cv::INTER_AREA);
     photo = std::move(small);  // the full-size pixels go unless the caller keeps them
   }
+  // Cast shadows relit at the working size, before the segmentation, the
+  // image check and the outline search see the photo (ortho/shadows.h).
+  if (o.shadows.enabled && photo.channels() == 3) photo = CompensateShadows(photo, o.shadows, &out.shadows);
   using Method = AerialOptions::Method;
   const bool regions = o.method != Method::kOutlines;
   cv::Mat grey, colour;  // colour: the image check's roofs (edge_evidence.h)

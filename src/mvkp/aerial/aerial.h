@@ -12,6 +12,7 @@
 
 #include "mvkp/buildings/depth_regions.h"
 #include "mvkp/ortho/optical_regions.h"
+#include "mvkp/ortho/shadows.h"
 #include "mvkp/shapes/edge_evidence.h"
 #include "mvkp/shapes/outline_search.h"
 #include "mvkp/shapes/register.h"
@@ -33,6 +34,10 @@ struct AerialOptions {
   int upscaled_min_pairs = 4;
   double upscaled_min_edge_contrast = 1.9;
   bool image_check = true;    // EdgeEvidence (edge_evidence.h) on the photo and all depth outlines
+  // Cast shadows relit before everything else sees the working photo
+  // (ortho/shadows.h; opt-in: shadows.enabled, off by default, see
+  // docs/aerial.md, "Shadow compensation: measured, opt-in").
+  ShadowOptions shadows;
   DepthSegmentOptions depth;
   OpticalSegmentOptions optical;
   EdgeEvidenceOptions edge;
@@ -78,6 +83,7 @@ struct AerialRegistration {
   OutlineSearchResult outline;         // the outline search's own result, when it ran
   double outline_search_ms = 0;
   double segment_depth_ms = 0, segment_photo_ms = 0;
+  ShadowCompensation shadows;          // what the shadow compensation found and did (working photo)
 };
 
 // Confidence of a region-method answer with `pairs` region pairs: the share

@@ -383,6 +383,65 @@ TEST(Aerial, ARelocationTheEdgesClearlyPreferIsKept) {
   EXPECT_THROW(RegisterAerial(c.depth, c.photo, bad), Error);
 }
 
+// Cast shadows relit (ortho/shadows.h, opt-in) on a generated suburb,
+// against the same scene rendered with the sun overhead (no cast shadows):
+// the step is found in the photo, the relit pixels are mostly true shadow,
+// and the relit photo is much closer to the one without shadows there.
+// Seed 122 suburb 11, whose registration fails with its shadows as they are.
+TEST(Aerial, CastShadowsAreRelit) {
+  CityOptions o;
+  o.style = "suburb";
+  const City c = MakeCity(o, 122u * 1000003u + 11u);
+  CityOptions overhead = o;
+  overhead.sun_elevation_deg = 90, overhead.sun_azimuth_deg = 0;
+  const City n = MakeCity(overhead, 122u * 1000003u + 11u);
+  ASSERT_EQ(c.photo.size(), n.photo.size());
+  cv::Mat3f a, b;
+  c.photo.convertTo(a, CV_32F);
+  n.photo.convertTo(b, CV_32F);
+  cv::Mat1b truth(c.photo.size(), uint8_t(0));  // the cast shadows
+  for (int y = 0; y < a.rows; ++y)
+    for (int x = 0; x < a.cols; ++x) {
+      const cv::Vec3f p = a(y, x), q = b(y, x);
+      truth(y, x) = (q[0] + q[1] + q[2] + 3) > 1.25f * (p[0] + p[1] + p[2] + 3) ? 255 : 0;
+    }
+  ShadowCompensation info;
+  cv::Mat1b mask;
+  ShadowOptions so;
+  so.enabled = true;
+  const cv::Mat relit = CompensateShadows(c.photo, so, &info, &mask);
+  ASSERT_TRUE(info.applied) << info.samples << " samples, " << info.votes << " votes";
+  // blue drops least
+  EXPECT_LT(info.log_step[2], info.log_step[1]);
+  EXPECT_LT(info.log_step[1], info.log_step[0]);
+  const double hit = cv::countNonZero(mask & truth), relit_px = cv::countNonZero(mask), shadow_px = cv::countNonZero(truth);
+  EXPECT_GT(hit / relit_px, 0.6);   // precision
+  std::printf("relit %.1f %% of the photo: precision %.2f, recall %.2f\n", 100.0 * relit_px / double(c.photo.total()), hit / relit_px, hit / shadow_px);
+  EXPECT_GT(hit / shadow_px, 0.4);  // recall (0.49 at this full size)
+  cv::Mat3f r;
+  relit.convertTo(r, CV_32F);
+  const cv::Scalar before = cv::mean(cv::abs(a - b), truth), after = cv::mean(cv::abs(r - b), truth);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_LT(after[ch], 0.6 * before[ch]) << "channel " << ch;
+  // The registration, with it (opt-in) and without (the default): printed,
+  // not asserted. The compensation is experimental: on seed 122's suburbs
+  // it is no gain yet (docs/aerial.md), and on this scene it has given a
+  // right answer in one variant and a 5.1 px near miss in another.
+  AerialOptions on;
+  on.shadows.enabled = true;
+  const AerialRegistration w = RegisterAerial(c.depth, c.photo, on);
+  EXPECT_TRUE(w.shadows.applied);
+  const AerialRegistration wo = RegisterAerial(c.depth, c.photo);
+  EXPECT_FALSE(wo.shadows.applied);
+  std::printf("shadows relit: %s; as they are: %s\n",
+              w.registration.ok ? cv::format("%.1f px", CornerError(c, w.registration.photo_to_depth)).c_str()
+                                : w.registration.reason.c_str(),
+              wo.registration.ok ? cv::format("%.1f px", CornerError(c, wo.registration.photo_to_depth)).c_str()
+                                 : wo.registration.reason.c_str());
+  AerialOptions bad;
+  bad.shadows.grow_window = 2;
+  EXPECT_THROW(RegisterAerial(c.depth, c.photo, bad), Error);
+}
+
 TEST(Aerial, ImageCheckCanBeTurnedOff) {
   CityOptions o;
   o.width = o.height = 500;
