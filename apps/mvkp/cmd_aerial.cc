@@ -142,6 +142,7 @@ struct RegisterArgs {
   int photo_min_side = AerialOptions{}.photo_min_side;
   double photo_max_upscale = AerialOptions{}.photo_max_upscale;
   bool shadows = AerialOptions{}.shadows.enabled;
+  bool shadow_fallback = AerialOptions{}.shadow_fallback;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
   RegistrationOptions opt;
@@ -203,6 +204,7 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.photo_min_side = a.photo_min_side;
     ao.photo_max_upscale = a.photo_max_upscale;
     ao.shadows.enabled = a.shadows;
+    ao.shadow_fallback = a.shadow_fallback;
     ao.registration = a.opt;
     ao.edge = a.edge;
     ao.image_check = a.edge.min_contrast > 0;
@@ -250,8 +252,9 @@ Json RegisterCompute(RegisterArgs& a) {
       out["lean_depth_px_per_m"] = nullptr, out["lean_m_per_m"] = nullptr;
     }
     // cast-shadow compensation (ortho/shadows.h): the step found, in log
-    // B, G, R, and the fraction of the working photo relit
-    out["shadows"] = {{"applied", ar.shadows.applied},
+    // B, G, R, the fraction of the working photo relit, and whether the
+    // answer is the shadow fallback's (a second pass on the relit photo)
+    out["shadows"] = {{"applied", ar.shadows.applied}, {"fallback_answer", ar.shadow_fallback_used},
                       {"log_step_bgr", ar.shadows.applied ? Json{ar.shadows.log_step[0], ar.shadows.log_step[1],
                                                                  ar.shadows.log_step[2]}
                                                           : Json(nullptr)},
@@ -457,8 +460,11 @@ void RegisterRegister(CLI::App& app, int* code) {
       ->capture_default_str()
       ->check(CLI::Range(1.0, 8.0));
   c->add_flag("--shadow-compensation", a->shadows,
-              "relight cast shadows first: a blue-tinted shadow step found in the photo (ortho/shadows.h; "
-              "experimental, off by default: docs/aerial.md)");
+              "relight cast shadows first (ortho/shadows.h; off by default: as the first pass it loses as many "
+              "answers as it gains, docs/aerial.md)");
+  c->add_flag("!--no-shadow-fallback", a->shadow_fallback,
+              "no second pass on the photo with its cast shadows relit when the photo as it is gives no "
+              "registration (the second pass answers only by region shapes)");
   c->callback([a, code] { *code = RunRegister(*a); });
 }
 

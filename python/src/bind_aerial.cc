@@ -82,6 +82,7 @@ struct PyRegistration {
   double confidence = 0;    // register_aerial: [0, 1] of the answer
   double photo_upscale = 1;  // register_aerial: the photo regions' segmentation size / the working size
   ShadowCompensation shadows;  // register_aerial: the cast-shadow compensation (ortho/shadows.h)
+  bool shadow_fallback_used = false;  // register_aerial: the answer is the shadow fallback's
 };
 
 }  // namespace
@@ -263,9 +264,11 @@ void BindAerial(py::module_& m) {
                                               : py::object(py::none());
         d["fraction"] = r.shadows.fraction;
         d["votes"] = r.shadows.votes;
+        d["fallback_answer"] = r.shadow_fallback_used;
         return d;
       }, "register_aerial: the cast-shadow compensation: applied, the shadow step found (log B, G, R; None when "
-         "not applied), the fraction of the working photo relit, the edge votes for the step")
+         "not applied), the fraction of the working photo relit, the edge votes for the step, and whether the answer is "
+         "the shadow fallback's")
       .def_property_readonly("lean_depth_px_per_m", [](const PyRegistration& r) -> py::object {
         if (!r.reg.ok) return py::none();
         return py::make_tuple(r.reg.lean_px_per_m.x, r.reg.lean_px_per_m.y);
@@ -324,7 +327,7 @@ void BindAerial(py::module_& m) {
       "register_aerial",
       [](py::handle depth, py::handle photo, int photo_max_side, int photo_min_side, py::handle depth_options,
          py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
-         double photo_res_m, double depth_res_m, bool shadow_compensation, py::kwargs kw) {
+         double photo_res_m, double depth_res_m, bool shadow_compensation, bool shadow_fallback, py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -354,6 +357,7 @@ void BindAerial(py::module_& m) {
           ao.photo_res_m = photo_res_m;
           ao.depth_res_m = depth_res_m;
           ao.shadows.enabled = shadow_compensation;
+          ao.shadow_fallback = shadow_fallback;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
@@ -364,6 +368,7 @@ void BindAerial(py::module_& m) {
           out->confidence = out->reg.ok ? ar.confidence : 0.0;
           out->photo_upscale = ar.photo_upscale;
           out->shadows = ar.shadows;
+          out->shadow_fallback_used = ar.shadow_fallback_used;
           outline_ms = ar.outline_search_ms;
           total_ms = total.ElapsedMs();
         }
@@ -380,6 +385,7 @@ void BindAerial(py::module_& m) {
       py::arg("depth_options") = py::none(), py::arg("optical_options") = py::none(), py::arg("edge_options") = py::none(),
       py::arg("options") = py::none(), py::arg("method") = "auto", py::arg("photo_res_m") = 0.0,
       py::arg("depth_res_m") = 0.0, py::arg("shadow_compensation") = AerialOptions{}.shadows.enabled,
+      py::arg("shadow_fallback") = AerialOptions{}.shadow_fallback,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
@@ -387,9 +393,10 @@ void BindAerial(py::module_& m) {
       "OpticalSegmentOptions. method: 'auto' (regions, then the outline search when they find nothing), "
       "'regions' or 'outlines'; photo_res_m / depth_res_m (metres per pixel, 0 unknown) narrow the outline "
       "search's scales. photo_min_side (1200; 0 off): a smaller photo is also segmented upscaled, for when its "
-      "own size finds nothing (photo_segmentation_upscale says which answered). shadow_compensation (False; "
-      "experimental): blue-tinted cast shadows found in the photo are relit first (the result's shadows says "
-      "what was done). "
+      "own size finds nothing (photo_segmentation_upscale says which answered). shadow_compensation (False): "
+      "blue-tinted cast shadows found in the photo are relit first; shadow_fallback (True): when the photo as "
+      "it is gives no registration, a second pass on it relit, answering by region shapes only (the result's "
+      "shadows says what was done). "
       "The result's method and confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)

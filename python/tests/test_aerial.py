@@ -90,16 +90,22 @@ def test_register_aerial_coarse_photo_upscaled():
 
 
 def test_shadow_compensation(city):
-    # opt-in (experimental): off by default; on, make_city's photo (cast
-    # shadows under a random sun) gets its step found and part of it relit
-    off = mvkp.register_aerial(city.depth, city.photo)
-    assert set(off.shadows) == {"applied", "log_step_bgr", "fraction", "votes"}
+    # relit first: opt-in; the fallback (a second pass on the photo relit
+    # when the photo as it is gives nothing): on by default. make_city's
+    # photo has cast shadows (a random sun): relit first, its step is found
+    # and part of it relit
+    off = mvkp.register_aerial(city.depth, city.photo, shadow_fallback=False)
+    assert set(off.shadows) == {"applied", "log_step_bgr", "fraction", "votes", "fallback_answer"}
     assert not off.shadows["applied"] and off.shadows["log_step_bgr"] is None and off.shadows["fraction"] == 0
+    assert not off.shadows["fallback_answer"]
     s = mvkp.register_aerial(city.depth, city.photo, shadow_compensation=True).shadows
-    assert s["applied"] and s["votes"] >= 40
+    assert s["applied"] and s["votes"] >= 40 and not s["fallback_answer"]
     b, g, red = s["log_step_bgr"]
     assert red <= g + 0.02 and g <= b + 0.02 and b < 0  # blue drops least
     assert 0 < s["fraction"] < 0.4
+    d = mvkp.register_aerial(city.depth, city.photo)
+    if off.ok:  # the first pass answered: no second pass
+        assert d.ok and not d.shadows["fallback_answer"]
 
 
 def test_aerial_bad_input(city):

@@ -49,22 +49,36 @@ double RegionConfidence(int pairs) {
   return 32.0 / 33.0;
 }
 
-AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOptions& o) {
-  o.Check();
-  Require(!depth.empty(), ErrorCode::kBadImage, "aerial registration: empty depth image");
-  Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
-          ErrorCode::kBadImage, "aerial registration: the photo must be a non-empty 8-bit grey or BGR image");
+namespace {
+
+// What a second pass reuses from the first: the working photo (before any
+// shadow compensation), its scale, and the depth's building regions.
+struct PassState {
+  cv::Mat working;
+  double f = 1;
+  std::vector<BuildingRegion> dregions;
+  double segment_depth_ms = 0;
+};
+
+// One pass of the pipeline. `reuse`: the state of an earlier pass (the
+// photo and depth arguments are then not read); `keep`: where to leave
+// this pass's state for a later one.
+AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOptions& o, const PassState* reuse,
+                                PassState* keep) {
   AerialRegistration out;
   // The order keeps peak memory low: the full-size photo goes before the depth
   // segmentation's working maps exist, the depth before the photo's.
   Timer tp;
   double f = 1.0;
-  if (o.photo_max_side > 0 && std::max(photo.cols, photo.rows) > o.photo_max_side) {
+  if (reuse) {
+    photo = reuse->working, f = reuse->f;
+  } else if (o.photo_max_side > 0 && std::max(photo.cols, photo.rows) > o.photo_max_side) {
     f = double(o.photo_max_side) / std::max(photo.cols, photo.rows);
     cv::Mat small;
     cv::resize(photo, small, cv::Size(), f, f, cv::INTER_AREA);
     photo = std::move(small);  // the full-size pixels go unless the caller keeps them
   }
+  if (keep) keep->working = photo, keep->f = f;
   // Cast shadows relit at the working size, before the segmentation, the
   // image check and the outline search see the photo (ortho/shadows.h).
   if (o.shadows.enabled && photo.channels() == 3) photo = CompensateShadows(photo, o.shadows, &out.shadows);
@@ -80,9 +94,10 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   double photo_ms = tp.ElapsedMs();
 
   Timer td;
-  const std::vector<BuildingRegion> dregions = SegmentDepth(depth, o.depth);
+  const std::vector<BuildingRegion> dregions = reuse ? reuse->dregions : SegmentDepth(depth, o.depth);
   depth.release();
-  out.segment_depth_ms = td.ElapsedMs();
+  out.segment_depth_ms = reuse ? reuse->segment_depth_ms : td.ElapsedMs();
+  if (keep) keep->dregions = dregions, keep->segment_depth_ms = out.segment_depth_ms;
   for (const auto& r : dregions) out.depth_regions.emplace_back(r.contour.begin(), r.contour.end());
 
   tp.Restart();
@@ -265,6 +280,41 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     out.confidence = 0;
   }
   return out;
+}
+
+}  // namespace
+
+AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOptions& o) {
+  o.Check();
+  Require(!depth.empty(), ErrorCode::kBadImage, "aerial registration: empty depth image");
+  Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
+          ErrorCode::kBadImage, "aerial registration: the photo must be a non-empty 8-bit grey or BGR image");
+  // The shadow fallback (AerialOptions::shadow_fallback): only for a colour
+  // photo, and only the region routes may answer on the relit photo.
+  const bool fallback = o.shadow_fallback && !o.shadows.enabled && photo.channels() == 3 &&
+                        o.method != AerialOptions::Method::kOutlines;
+  if (!fallback) return RegisterPass(std::move(depth), std::move(photo), o, nullptr, nullptr);
+  PassState state;
+  AerialRegistration first = RegisterPass(std::move(depth), std::move(photo), o, nullptr, &state);
+  if (first.registration.ok) return first;
+  AerialOptions lit = o;
+  lit.shadows.enabled = true;
+  lit.method = AerialOptions::Method::kRegions;
+  AerialRegistration second = RegisterPass(cv::Mat1f(), cv::Mat(), lit, &state, nullptr);
+  if (!second.shadows.applied) {
+    first.shadows = second.shadows;  // what the compensation found (no step: nothing relit)
+    return first;
+  }
+  if (!second.registration.ok) {
+    first.shadows = second.shadows;
+    first.registration.reason += "; with the cast shadows relit: " +
+        second.registration.reason.substr(second.registration.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0);
+    return first;
+  }
+  second.shadow_fallback_used = true;
+  second.segment_photo_ms += first.segment_photo_ms;
+  second.outline_search_ms += first.outline_search_ms;
+  return second;
 }
 
 }  // namespace mvkp

@@ -34,10 +34,15 @@ struct AerialOptions {
   int upscaled_min_pairs = 4;
   double upscaled_min_edge_contrast = 1.9;
   bool image_check = true;    // EdgeEvidence (edge_evidence.h) on the photo and all depth outlines
-  // Cast shadows relit before everything else sees the working photo
-  // (ortho/shadows.h; opt-in: shadows.enabled, off by default, see
-  // docs/aerial.md, "Shadow compensation: measured, opt-in").
+  // Cast shadows (ortho/shadows.h; docs/aerial.md, "Shadow compensation").
+  // shadows.enabled: relit before everything else sees the working photo
+  // (off by default: as the first pass it loses as many answers as it
+  // gains). shadow_fallback: when the photo as it is gives no registration,
+  // a second pass on the working photo relit (the depth's regions reused),
+  // whose answer is kept only from the region routes (the outline search
+  // registered a photo of other ground on a relit photo).
   ShadowOptions shadows;
+  bool shadow_fallback = true;
   DepthSegmentOptions depth;
   OpticalSegmentOptions optical;
   EdgeEvidenceOptions edge;
@@ -84,6 +89,7 @@ struct AerialRegistration {
   double outline_search_ms = 0;
   double segment_depth_ms = 0, segment_photo_ms = 0;
   ShadowCompensation shadows;          // what the shadow compensation found and did (working photo)
+  bool shadow_fallback_used = false;   // the answer is the shadow fallback's (AerialOptions::shadow_fallback)
 };
 
 // Confidence of a region-method answer with `pairs` region pairs: the share

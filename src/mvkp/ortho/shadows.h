@@ -31,21 +31,22 @@
 //     penumbra's ramp into the lit ground.
 //  4. Relighting: the photo divided by the step over the (feathered) mask.
 //
-// Measured (docs/aerial.md, "Shadow compensation: measured, opt-in"), seed
+// Measured (docs/aerial.md, "Shadow compensation: a fallback pass"), seed
 // 122 suburb, 40 scenes: 27 registered as the photos are; 36 with the
 // photos relit by the TRUE shadow mask (so relighting is the right remedy);
 // 33 with this detector given the generator's own step (a prototype); 25-29
 // with the step found in the photo, as here, by variant. Dark materials
 // whose colour ratio to a neighbour mimics the step (asphalt beside paving,
-// dark grass patches) are relit too. Hence OFF by default: a tool and a
-// building block, not yet a gain.
+// dark grass patches) are relit too. So it does not go first (enabled is
+// false by default); the registration uses it as a second pass where the
+// photo as it is finds nothing (AerialOptions::shadow_fallback).
 #pragma once
 #include <opencv2/core.hpp>
 
 namespace mvkp {
 
 struct ShadowOptions {
-  bool enabled = false;         // opt-in (see "Measured" above); false: the photo passes unchanged
+  bool enabled = false;         // false: the photo passes unchanged (callers turn it on; see "Measured")
   int work_max_side = 0;        // the step, seeds and growth on the photo downscaled to this side (0: never);
                                 //   the relighting at full size
   // --- the step (calibration)
