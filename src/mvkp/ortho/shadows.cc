@@ -36,6 +36,57 @@ namespace {
 
 constexpr float kLogOffset = 6.f;  // log(I + 6): dark pixels' noise does not explode
 
+constexpr int kBandRows = 64;  // rows per band of the banded passes (memory: no full-size float maps)
+
+// The mean log colour (log intensity) of a pixel; computed where needed
+// rather than kept as a full-size map.
+inline float LogMean(const cv::Vec3f& l) { return (l[0] + l[1] + l[2]) / 3.f; }
+
+// Index i mirrored into [0, n) as OpenCV's BORDER_REFLECT_101 does (n >= 2).
+inline int Reflect101(int i, int n) {
+  if (i < 0) return -i;
+  if (i >= n) return 2 * n - 2 - i;
+  return i;
+}
+
+// pass(y, x) = 1 where the pixel passes the growth test against the mask's
+// mean colour over the win x win window around it (some mask pixel there;
+// every channel within tol of the mean; mean log intensity not above the
+// mean's by more than up). Computed in bands of rows with their halo, so
+// its working maps are a band's, not the photo's.
+void PassMap(const cv::Mat3f& L, const cv::Mat1b& m, int win, float tol, float up,
+             cv::Mat1b& pass) {
+  const int H = L.rows, W = L.cols, r = win / 2;
+  const cv::Size ksize(win, win);
+  cv::Mat1f mf, cnt;
+  cv::Mat3f Lm, sum;
+  for (int y0 = 0; y0 < H; y0 += kBandRows) {
+    const int y1 = std::min(H, y0 + kBandRows), a = std::max(0, y0 - r), b = std::min(H, y1 + r);
+    const cv::Mat1b mb = m.rowRange(a, b);
+    mb.convertTo(mf, CV_32F);
+    cv::boxFilter(mf, cnt, -1, ksize, cv::Point(-1, -1), false);
+    Lm.create(b - a, W);
+    Lm.setTo(cv::Scalar::all(0));
+    L.rowRange(a, b).copyTo(Lm, mb);
+    cv::boxFilter(Lm, sum, -1, ksize, cv::Point(-1, -1), false);
+    for (int y = y0; y < y1; ++y) {
+      const float* c = cnt[y - a];
+      const cv::Vec3f* sm = sum[y - a];
+      const cv::Vec3f* v = L[y];
+      uint8_t* p = pass[y];
+      for (int x = 0; x < W; ++x) {
+        p[x] = 0;
+        if (c[x] < 0.5f) continue;
+        const cv::Vec3f mean = sm[x] / c[x];
+        if (std::abs(v[x][0] - mean[0]) >= tol || std::abs(v[x][1] - mean[1]) >= tol ||
+            std::abs(v[x][2] - mean[2]) >= tol)
+          continue;
+        p[x] = LogMean(v[x]) <= (mean[0] + mean[1] + mean[2]) / 3.f + up;
+      }
+    }
+  }
+}
+
 // The densest mode of the steps (mean shift, Chebyshev window), from evenly
 // spaced starts. Returns the votes in the mode.
 int Mode(const std::vector<cv::Vec3f>& d, double win, cv::Vec3f* best) {
@@ -86,44 +137,65 @@ cv::Mat CompensateShadows(const cv::Mat& bgr, const ShadowOptions& o, ShadowComp
   const int H = small.rows, W = small.cols;
 
   // Log colours of the smoothed photo, and their mean (log intensity).
-  cv::Mat3f L;
-  small.convertTo(L, CV_32FC3);
-  if (o.pre_blur_sigma > 0) cv::GaussianBlur(L, L, cv::Size(), o.pre_blur_sigma);
-  L += cv::Scalar::all(kLogOffset);
-  cv::log(L, L);
-  cv::Mat1f lm(H, W);
-  for (int y = 0; y < H; ++y) {
-    const cv::Vec3f* l = L[y];
-    float* m = lm[y];
-    for (int x = 0; x < W; ++x) m[x] = (l[x][0] + l[x][1] + l[x][2]) / 3.f;
+  // (In bands of rows with a halo: a full-size float copy for the blur would
+  // double the peak.)
+  cv::Mat3f L(H, W);
+  {
+    const int halo = o.pre_blur_sigma > 0 ? int(std::ceil(4 * o.pre_blur_sigma)) + 1 : 0;
+    cv::Mat3f band;
+    for (int y0 = 0; y0 < H; y0 += kBandRows) {
+      const int y1 = std::min(H, y0 + kBandRows), a = std::max(0, y0 - halo), b = std::min(H, y1 + halo);
+      small.rowRange(a, b).convertTo(band, CV_32FC3);
+      if (o.pre_blur_sigma > 0) cv::GaussianBlur(band, band, cv::Size(), o.pre_blur_sigma);
+      cv::Mat3f rows = L.rowRange(y0, y1);
+      band.rowRange(y0 - a, y1 - a).copyTo(rows);
+      rows += cv::Scalar::all(kLogOffset);
+      cv::log(rows, rows);
+    }
   }
 
   // 1. The step: dark minus bright across edges with uniform sides.
   if (o.log_step[0] < 0 && o.log_step[1] < 0 && o.log_step[2] < 0) {
     inf.log_step = o.log_step;  // given
   } else {
-    cv::Mat1b grey, edges;
-    cv::cvtColor(small, grey, cv::COLOR_BGR2GRAY);
-    cv::Canny(grey, edges, 30, 80);
-    cv::Mat1f gx, gy, mu, mu2;
-    cv::Sobel(lm, gx, CV_32F, 1, 0);
-    cv::Sobel(lm, gy, CV_32F, 0, 1);
-    const cv::Size side(o.side_window, o.side_window);
-    cv::blur(lm, mu, side);
-    cv::blur(lm.mul(lm), mu2, side);
+    cv::Mat1b edges;
+    {
+      cv::Mat1b grey;
+      cv::cvtColor(small, grey, cv::COLOR_BGR2GRAY);
+      cv::Canny(grey, edges, 30, 80);
+    }
+    // The gradient (3x3 Sobel) and the sides' variance (side_window box) at
+    // the sampled points only: full-size maps of them cost 16 bytes a pixel.
+    auto at = [&](int x, int y) { return LogMean(L(Reflect101(y, H), Reflect101(x, W))); };
+    const int sr = o.side_window / 2;
+    const float inv_area = 1.f / float(o.side_window * o.side_window);
+    auto var = [&](int x, int y) {
+      float s1 = 0, s2 = 0;
+      for (int v = y - sr; v <= y + sr; ++v)
+        for (int u = x - sr; u <= x + sr; ++u) {
+          const float a = at(u, v);
+          s1 += a, s2 += a * a;
+        }
+      s1 *= inv_area, s2 *= inv_area;
+      return s2 - s1 * s1;
+    };
     std::vector<cv::Point> pts;
     for (int y = 0; y < H; ++y) {
       const uint8_t* e = edges[y];
       for (int x = 0; x < W; ++x)
         if (e[x]) pts.emplace_back(x, y);
     }
+    edges.release();
     const size_t stride = std::max<size_t>(1, (pts.size() + o.max_samples - 1) / o.max_samples);
     const float sd2 = float(o.max_side_sd * o.max_side_sd);
-    auto var = [&](int x, int y) { return mu2(y, x) - mu(y, x) * mu(y, x); };
     std::vector<cv::Vec3f> steps;
     for (size_t i = 0; i < pts.size(); i += stride) {
       const cv::Point p = pts[i];
-      const float dx = gx(p), dy = gy(p), mag = std::sqrt(dx * dx + dy * dy);
+      const float dx = (at(p.x + 1, p.y - 1) - at(p.x - 1, p.y - 1)) + 2 * (at(p.x + 1, p.y) - at(p.x - 1, p.y)) +
+                       (at(p.x + 1, p.y + 1) - at(p.x - 1, p.y + 1));
+      const float dy = (at(p.x - 1, p.y + 1) - at(p.x - 1, p.y - 1)) + 2 * (at(p.x, p.y + 1) - at(p.x, p.y - 1)) +
+                       (at(p.x + 1, p.y + 1) - at(p.x + 1, p.y - 1));
+      const float mag = std::sqrt(dx * dx + dy * dy);
       if (mag < 1e-6f) continue;
       // the farthest offset (of edge_offset + 2 .. edge_offset) whose two
       // sides are uniform: past a soft shadow edge's ramp where it is wide
@@ -160,10 +232,9 @@ cv::Mat CompensateShadows(const cv::Mat& bgr, const ShadowOptions& o, ShadowComp
   const float dmean = (d[0] + d[1] + d[2]) / 3.f;
 
   // 2. Seeds: the pixel lit again matches a ring pixel. Only pixels with a
-  // ring-reach neighbour at least as bright as their relit self are tried.
+  // ring-reach neighbour at least as bright as their relit self are tried
+  // (that neighbourhood's maximum, in bands of rows: memory).
   const int rmax = 16;
-  cv::Mat1f lmax;
-  cv::dilate(lm, lmax, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * rmax + 1, 2 * rmax + 1)));
   std::vector<cv::Point> ring;
   for (int r : {3, 6, 10, 16})
     for (int k = 0; k < o.ring_dirs; ++k) {
@@ -172,18 +243,30 @@ cv::Mat CompensateShadows(const cv::Mat& bgr, const ShadowOptions& o, ShadowComp
     }
   const float eps = float(o.match_eps);
   cv::Mat1b m(H, W, uint8_t(0));
-  for (int y = 0; y < H; ++y) {
-    const cv::Vec3f* l = L[y];
-    for (int x = 0; x < W; ++x) {
-      if (lm(y, x) - dmean > lmax(y, x) + eps) continue;
-      const cv::Vec3f rl = l[x] - d;
-      for (const cv::Point& q : ring) {
-        const int qx = x + q.x, qy = y + q.y;
-        if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-        const cv::Vec3f& v = L(qy, qx);
-        if (std::abs(v[0] - rl[0]) < eps && std::abs(v[1] - rl[1]) < eps && std::abs(v[2] - rl[2]) < eps) {
-          m(y, x) = 1;
-          break;
+  {
+    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * rmax + 1, 2 * rmax + 1));
+    cv::Mat1f lband, lmax;
+    for (int y0 = 0; y0 < H; y0 += kBandRows) {
+      const int y1 = std::min(H, y0 + kBandRows), a = std::max(0, y0 - rmax), b = std::min(H, y1 + rmax);
+      lband.create(b - a, W);
+      for (int y = a; y < b; ++y)
+        for (int x = 0; x < W; ++x) lband(y - a, x) = LogMean(L(y, x));
+      cv::dilate(lband, lmax, kernel);
+      for (int y = y0; y < y1; ++y) {
+        const cv::Vec3f* l = L[y];
+        const float* mx = lmax[y - a];
+        for (int x = 0; x < W; ++x) {
+          if (LogMean(l[x]) - dmean > mx[x] + eps) continue;
+          const cv::Vec3f rl = l[x] - d;
+          for (const cv::Point& q : ring) {
+            const int qx = x + q.x, qy = y + q.y;
+            if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
+            const cv::Vec3f& v = L(qy, qx);
+            if (std::abs(v[0] - rl[0]) < eps && std::abs(v[1] - rl[1]) < eps && std::abs(v[2] - rl[2]) < eps) {
+              m(y, x) = 1;
+              break;
+            }
+          }
         }
       }
     }
@@ -191,26 +274,12 @@ cv::Mat CompensateShadows(const cv::Mat& bgr, const ShadowOptions& o, ShadowComp
   cv::morphologyEx(m, m, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2, 2)));
 
   // 3. Growth, round by round: the mask's mean colour over the window is
-  // fixed within a round; a flood through the pixels that pass against it.
-  const cv::Size win(o.grow_window, o.grow_window);
-  const float tol = float(o.grow_tol), up = float(o.grow_up);
-  cv::Mat1f mf, cnt;
-  cv::Mat3f sum;
+  // fixed within a round, so which pixels pass against it is a map of the
+  // round (PassMap, in bands of rows); a flood through them.
+  cv::Mat1b pass(H, W);
   std::deque<cv::Point> queue;
   for (int round = 0; round < o.grow_rounds; ++round) {
-    m.convertTo(mf, CV_32F);
-    cv::boxFilter(mf, cnt, -1, win, cv::Point(-1, -1), false);
-    cv::Mat3f Lm(H, W, cv::Vec3f(0, 0, 0));
-    L.copyTo(Lm, m);
-    cv::boxFilter(Lm, sum, -1, win, cv::Point(-1, -1), false);
-    auto passes = [&](int x, int y) {
-      const float c = cnt(y, x);
-      if (c < 0.5f) return false;
-      const cv::Vec3f mean = sum(y, x) / c, v = L(y, x);
-      if (std::abs(v[0] - mean[0]) >= tol || std::abs(v[1] - mean[1]) >= tol || std::abs(v[2] - mean[2]) >= tol)
-        return false;
-      return lm(y, x) <= (mean[0] + mean[1] + mean[2]) / 3.f + up;
-    };
+    PassMap(L, m, o.grow_window, float(o.grow_tol), float(o.grow_up), pass);
     int grown = 0;
     queue.clear();
     for (int y = 0; y < H; ++y)
@@ -222,13 +291,16 @@ cv::Mat CompensateShadows(const cv::Mat& bgr, const ShadowOptions& o, ShadowComp
       for (int k = 0; k < 8; ++k) {
         static const int kx[8] = {1, -1, 0, 0, 1, 1, -1, -1}, ky[8] = {0, 0, 1, -1, 1, -1, 1, -1};
         const int x = p.x + kx[k], y = p.y + ky[k];
-        if (x < 0 || y < 0 || x >= W || y >= H || m(y, x) || !passes(x, y)) continue;
+        if (x < 0 || y < 0 || x >= W || y >= H || m(y, x) || !pass(y, x)) continue;
         m(y, x) = 1, ++grown;
         queue.emplace_back(x, y);
       }
     }
     if (grown == 0) break;
   }
+  pass.release();
+  L.release();
+  std::deque<cv::Point>().swap(queue);
 
   const int n = cv::countNonZero(m);
   inf.fraction = double(n) / (double(W) * H);
