@@ -60,10 +60,11 @@ struct PassState {
   double segment_depth_ms = 0;
 };
 
-// One pass of the pipeline. `reuse`: the state of an earlier pass (the
-// photo and depth arguments are then not read); `keep`: where to leave
-// this pass's state for a later one.
-AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOptions& o, const PassState* reuse,
+// One pass of the pipeline. `reuse`: the state of an earlier pass, taken
+// over (moved: one working photo in memory, not two; the photo and depth
+// arguments are then not read); `keep`: where to leave this pass's state
+// for a later one.
+AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOptions& o, PassState* reuse,
                                 PassState* keep) {
   AerialRegistration out;
   // The order keeps peak memory low: the full-size photo goes before the depth
@@ -71,7 +72,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
   Timer tp;
   double f = 1.0;
   if (reuse) {
-    photo = reuse->working, f = reuse->f;
+    photo = std::move(reuse->working), f = reuse->f;
   } else if (o.photo_max_side > 0 && std::max(photo.cols, photo.rows) > o.photo_max_side) {
     f = double(o.photo_max_side) / std::max(photo.cols, photo.rows);
     cv::Mat small;
@@ -94,7 +95,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
   double photo_ms = tp.ElapsedMs();
 
   Timer td;
-  const std::vector<BuildingRegion> dregions = reuse ? reuse->dregions : SegmentDepth(depth, o.depth);
+  const std::vector<BuildingRegion> dregions = reuse ? std::move(reuse->dregions) : SegmentDepth(depth, o.depth);
   depth.release();
   out.segment_depth_ms = reuse ? reuse->segment_depth_ms : td.ElapsedMs();
   if (keep) keep->dregions = dregions, keep->segment_depth_ms = out.segment_depth_ms;
