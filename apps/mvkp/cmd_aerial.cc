@@ -429,6 +429,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "than this (median colour contrast, inside vs around) unless its edge contrast reaches 2.2 (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
+  c->add_option("--roof-veto-outlines", a->edge.min_roof_veto_regions,
+                "image check: the roof veto decides over at least this many outlines in view (roofs admit over "
+                "at least 4)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
   c->add_option("--roof-accept", a->edge.roof_accept,
                 "image check: a roof contrast this clear admits an edge contrast down to "
                 "--min-edge-contrast-with-roofs (0: off)")

@@ -282,6 +282,7 @@ class EdgeEvidenceOptions:
     roof_shrink_px: float
     roof_ring_px: float
     min_roof_regions: int
+    min_roof_veto_regions: int
     roof_accept: float
     min_contrast_with_roofs: float
     roof_veto: float
@@ -293,7 +294,7 @@ class EdgeEvidenceOptions:
     relocate_rounds: int
     relocate_lean_gain: float
     relocate_lean_outlines: int
-    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45, max_lean_px_per_m: float = 0.8, min_lean_gain: float = 0.01, min_lean_outlines: int = 6, min_lean_height_spread_m: float = 4.0, roof_shrink_px: float = 1.0, roof_ring_px: float = 3.0, min_roof_regions: int = 4, roof_accept: float = 1.5, min_contrast_with_roofs: float = 1.5, roof_veto: float = 1.1, roof_veto_below: float = 2.2, relocate_radius_px: float = 24.0, relocate_grid_px: float = 3.0, relocate_cells: int = 4, relocate_min_gain: float = 0.05, relocate_rounds: int = 3, relocate_lean_gain: float = 0.05, relocate_lean_outlines: int = 10) -> None: ...
+    def __init__(self, *, step_px: float = 2.0, search_px: float = 1.5, offset_px: float = 5.0, blur_sigma: float = 1.0, min_points: int = 60, min_contrast: float = 1.8, min_perspective_gain: float = 0.02, outward_growth: float = 1.4, min_region_points: int = 8, min_region_contrast: float = 1.5, min_regions_on_edges: float = 0.45, max_lean_px_per_m: float = 0.8, min_lean_gain: float = 0.01, min_lean_outlines: int = 6, min_lean_height_spread_m: float = 4.0, roof_shrink_px: float = 1.0, roof_ring_px: float = 3.0, min_roof_regions: int = 4, min_roof_veto_regions: int = 3, roof_accept: float = 1.5, min_contrast_with_roofs: float = 1.5, roof_veto: float = 1.1, roof_veto_below: float = 2.2, relocate_radius_px: float = 24.0, relocate_grid_px: float = 3.0, relocate_cells: int = 4, relocate_min_gain: float = 0.05, relocate_rounds: int = 3, relocate_lean_gain: float = 0.05, relocate_lean_outlines: int = 10) -> None: ...
     def to_dict(self) -> dict[str, Any]: ...
     def copy(self) -> EdgeEvidenceOptions: ...
     def check(self) -> None:

@@ -27,8 +27,10 @@ void EdgeEvidenceOptions::Check() const {
            min_lean_height_spread_m >= 0,
        "EdgeEvidenceOptions: max_lean_px_per_m in [0, 10], min_lean_gain >= 0, min_lean_outlines >= 3, "
        "min_lean_height_spread_m >= 0");
-  need(roof_shrink_px >= 0 && roof_shrink_px <= 10 && roof_ring_px >= 1 && roof_ring_px <= 20 && min_roof_regions >= 1,
-       "EdgeEvidenceOptions: roof_shrink_px in [0, 10], roof_ring_px in [1, 20], min_roof_regions >= 1");
+  need(roof_shrink_px >= 0 && roof_shrink_px <= 10 && roof_ring_px >= 1 && roof_ring_px <= 20 && min_roof_regions >= 1 &&
+           min_roof_veto_regions >= 1,
+       "EdgeEvidenceOptions: roof_shrink_px in [0, 10], roof_ring_px in [1, 20], min_roof_regions >= 1, "
+       "min_roof_veto_regions >= 1");
   need(roof_accept >= 0 && roof_veto >= 0 && roof_veto_below >= 0 && min_contrast_with_roofs > 0,
        "EdgeEvidenceOptions: roof_accept, roof_veto, roof_veto_below >= 0, min_contrast_with_roofs > 0");
   need(relocate_radius_px > 0 && relocate_radius_px <= 200 && relocate_grid_px > 0 &&
@@ -208,7 +210,9 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offse
 bool EdgeEvidence::Accepts(const EdgeScore& s) const {
   if (!s.enough) return false;
   const bool roofs = s.roof_regions >= opt_.min_roof_regions;
-  if (roofs && opt_.roof_veto > 0 && s.roof_contrast < opt_.roof_veto && s.contrast < opt_.roof_veto_below) return false;
+  if (s.roof_regions >= opt_.min_roof_veto_regions && opt_.roof_veto > 0 && s.roof_contrast < opt_.roof_veto &&
+      s.contrast < opt_.roof_veto_below)
+    return false;
   if (s.contrast >= opt_.min_contrast) return true;
   return roofs && opt_.roof_accept > 0 && s.roof_contrast >= opt_.roof_accept &&
          s.contrast >= opt_.min_contrast_with_roofs;

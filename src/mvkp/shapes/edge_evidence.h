@@ -79,7 +79,10 @@ struct EdgeEvidenceOptions {
   // Roofs (ScoreRoofs). 0 for roof_accept and roof_veto turns each rule off.
   double roof_shrink_px = 1.0;         // the inside, eroded by this (photo px)
   double roof_ring_px = 3.0;           // width of the ring around it (photo px)
-  int min_roof_regions = 4;            // outlines in view needed for a roof verdict
+  int min_roof_regions = 4;            // outlines in view needed for roofs to admit an answer
+  int min_roof_veto_regions = 3;       // ... and to refuse one (fewer: a right pose's roofs stand
+                                       //   apart over 3 outlines as over 4; seed 124's 533 px answer
+                                       //   scored 0.87 over 3, right answers 1.5-5.0)
   double roof_accept = 1.5;            // roof contrast that admits ...
   double min_contrast_with_roofs = 1.5;//   ... an edge contrast this low (< min_contrast)
   double roof_veto = 1.1;              // a roof contrast below this refuses an answer ...
@@ -132,11 +135,11 @@ class EdgeEvidence {
   // `stride` > 1 scores every stride-th outline sample only (a screening
   // estimate, about stride times faster; counts are scaled back).
   EdgeScore Evaluate(const cv::Matx33d& photo_to_depth, cv::Point2d lean = {}, int stride = 1) const;
-  // Edge contrast >= min_contrast; with the roofs scored (ScoreRoofs, over at
-  // least min_roof_regions outlines) also: roof contrast >= roof_veto unless
-  // the edge contrast reaches roof_veto_below, and an edge contrast >=
-  // min_contrast_with_roofs is enough when the roof contrast reaches
-  // roof_accept.
+  // Edge contrast >= min_contrast; with the roofs scored (ScoreRoofs) also:
+  // roof contrast >= roof_veto unless the edge contrast reaches
+  // roof_veto_below (roofs over at least min_roof_veto_regions outlines), and
+  // an edge contrast >= min_contrast_with_roofs is enough when the roof
+  // contrast reaches roof_accept (over at least min_roof_regions outlines).
   bool Accepts(const EdgeScore& s) const;
 
   // Fills s->roof_regions and s->roof_contrast for the transform (and lean)
