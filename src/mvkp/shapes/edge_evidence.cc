@@ -183,20 +183,22 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offse
     const cv::Point2d p = Map(D, q);
     const cv::Point2d pn = Map(D, q + cv::Point2d(s.n));
     cv::Point2d nu = pn - p;
-    const double k = std::hypot(nu.x, nu.y);  // image px per depth px
+    // image px per depth px (not std::hypot: glibc's took 14 % of a registration)
+    const double k = std::sqrt(nu.x * nu.x + nu.y * nu.y);
     if (!(k > 1e-6) || k > 100) continue;
     nu *= 1.0 / k;
     const double r = std::max(reach * k, 4.0 + opt_.search_px * k) + 2;
     if (!(p.x - r >= 0 && p.y - r >= 0 && p.x + r < w - 1 && p.y + r < h - 1)) continue;
     const double half = search_px * k;
     const int steps = half > 0 ? std::max(1, int(std::ceil(half))) : 0;
+    // the reference stays clear of the edge's blur however coarse the photo
+    const double centre = offset_px == 0 ? 0.0 : std::copysign(std::max(std::abs(offset_px) * k, 4.0), offset_px);
+    const float ux = float(nu.x), uy = float(nu.y);
     float best = 0;
     for (int i = -steps; i <= steps; ++i) {
-      // the reference stays clear of the edge's blur however coarse the photo
-      const double centre = offset_px == 0 ? 0.0 : std::copysign(std::max(std::abs(offset_px) * k, 4.0), offset_px);
       const double t = centre + (steps ? half * i / steps : 0.0);
       const float x = float(p.x + nu.x * t), y = float(p.y + nu.y * t);
-      const float g = 0.5f * (At(grey_, x + float(nu.x), y + float(nu.y)) - At(grey_, x - float(nu.x), y - float(nu.y)));
+      const float g = 0.5f * (At(grey_, x + ux, y + uy) - At(grey_, x - ux, y - uy));
       best = std::max(best, std::abs(g));
     }
     sum += best;
