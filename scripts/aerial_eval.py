@@ -345,6 +345,8 @@ def main():
                        peak_rss_above_start_mb=j.get("peak_rss_above_start_mb"), regions=j["regions"])
             if j.get("confidence") is not None:
                 row["confidence"] = j["confidence"]
+            if j.get("shadows"):
+                row["shadow_fallback"] = bool(j["shadows"].get("fallback_answer"))
             if j["ok"]:
                 e, nvis = corner_error(h_of(j["homography"]), Ht, truth["corners"], psize)
                 row.update(corner_error=e, corners_visible=nvis, homography=j["homography"])
