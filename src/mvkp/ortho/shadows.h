@@ -40,6 +40,9 @@
 // dark grass patches) are relit too. So it does not go first (enabled is
 // false by default); the registration uses it as a second pass where the
 // photo as it is finds nothing (AerialOptions::shadow_fallback).
+//
+// Memory: about 18 bytes a working-photo pixel at the peak (the log colours,
+// the mask and the growth's pass map); everything else runs in bands of rows.
 #pragma once
 #include <opencv2/core.hpp>
 
