@@ -41,8 +41,9 @@
 // false by default); the registration uses it as a second pass where the
 // photo as it is finds nothing (AerialOptions::shadow_fallback).
 //
-// Memory: about 18 bytes a working-photo pixel at the peak (the log colours,
-// the mask and the growth's pass map); everything else runs in bands of rows.
+// Memory: about 14 bytes a working-photo pixel besides the photo and its
+// relit copy (the log colours, the mask and the growth's pass map);
+// everything else runs in bands of rows.
 #pragma once
 #include <opencv2/core.hpp>
 
