@@ -42,13 +42,6 @@ constexpr int kBandRows = 64;  // rows per band of the banded passes (memory: no
 // rather than kept as a full-size map.
 inline float LogMean(const cv::Vec3f& l) { return (l[0] + l[1] + l[2]) / 3.f; }
 
-// Index i mirrored into [0, n) as OpenCV's BORDER_REFLECT_101 does (n >= 2).
-inline int Reflect101(int i, int n) {
-  if (i < 0) return -i;
-  if (i >= n) return 2 * n - 2 - i;
-  return i;
-}
-
 // pass(y, x) = 1 where the pixel passes the growth test against the mask's
 // mean colour over the win x win window around it (some mask pixel there;
 // every channel within tol of the mean; mean log intensity not above the
@@ -166,7 +159,11 @@ cv::Mat CompensateShadows(const cv::Mat& bgr, const ShadowOptions& o, ShadowComp
     }
     // The gradient (3x3 Sobel) and the sides' variance (side_window box) at
     // the sampled points only: full-size maps of them cost 16 bytes a pixel.
-    auto at = [&](int x, int y) { return LogMean(L(Reflect101(y, H), Reflect101(x, W))); };
+    // (the border as cv::Sobel and cv::blur treat it, BORDER_REFLECT_101)
+    auto in = [](int i, int n) {
+      return unsigned(i) < unsigned(n) ? i : cv::borderInterpolate(i, n, cv::BORDER_REFLECT_101);
+    };
+    auto at = [&](int x, int y) { return LogMean(L(in(y, H), in(x, W))); };
     const int sr = o.side_window / 2;
     const float inv_area = 1.f / float(o.side_window * o.side_window);
     auto var = [&](int x, int y) {
