@@ -253,11 +253,12 @@ std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& 
   // fBm model: given, or fitted on this photo's (eroded) vegetation map.
   FbmModel fbm = opt.fbm;
   bool use_fractal = opt.use_fractal;
+  std::vector<cv::Mat1f> fitted_ofe;  // the fit's OFE map of this photo, reused below
   if (use_fractal && !fbm.Valid()) {
     cv::Mat1b natural;
     cv::erode(m.veg, natural, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
     try {
-      fbm = FitFbm({m.raw_gray}, {natural}, 7, 3);
+      fbm = FitFbm({m.raw_gray}, {natural}, 7, 3, &fitted_ofe);
     } catch (const Error&) {
       use_fractal = false;  // too little known-natural texture to fit on
     }
@@ -266,7 +267,8 @@ std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& 
   cv::Mat1b textured;  // 255: fractal error below the building threshold (natural texture)
   if (use_fractal) {
     const float ofe_min = static_cast<float>(opt.ofe_ratio * fbm.ofe);
-    textured = OverallFractalError(m.raw_gray, fbm) < ofe_min;
+    textured = (fitted_ofe.empty() ? OverallFractalError(m.raw_gray, fbm) : fitted_ofe[0]) < ofe_min;
+    fitted_ofe.clear();
   }
 
   // label: the segment id per pixel. tested: 1 where the growing segment has

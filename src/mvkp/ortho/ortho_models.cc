@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <map>
 #include <numbers>
 
 #include <opencv2/imgproc.hpp>
@@ -44,14 +43,16 @@ std::vector<cv::Point> RasterContour(const std::vector<cv::Point2f>& poly, cv::S
 }  // namespace
 
 FbmModel FitFbm(const std::vector<cv::Mat>& images, const std::vector<cv::Mat>& masks, int window,
-                int stride) {
+                int stride, std::vector<cv::Mat1f>* ofe_maps) {
   Require(images.size() == masks.size() && !images.empty(), ErrorCode::kInvalidArgument,
           "fBm fit: need as many masks as images (and at least one)");
   Require(window >= 3 && window % 2 == 1 && window <= 31, ErrorCode::kInvalidArgument,
           "fBm fit: window must be odd, 3..31");
   Require(stride >= 1, ErrorCode::kInvalidArgument, "fBm fit: stride must be >= 1");
   const int r = window / 2;
-  std::map<int, std::pair<double, double>> by_d2;  // d² -> (sum |dI|, count)
+  // d² -> (sum |dI|, count), indexed by d² (a table, not a map: this loop
+  // runs ~25 times per sampled pixel)
+  std::vector<std::pair<double, double>> by_d2(size_t(2 * r * r + 1), {0.0, 0.0});
   std::vector<cv::Mat1b> grays;
   size_t used = 0;
   for (size_t i = 0; i < images.size(); ++i) {
@@ -69,7 +70,7 @@ FbmModel FitFbm(const std::vector<cv::Mat>& images, const std::vector<cv::Mat>& 
           for (int dx = -r; dx <= r; ++dx) {
             if (dy == 0 && dx <= 0) continue;
             if (!mk(y + dy, x + dx)) continue;
-            auto& s = by_d2[dx * dx + dy * dy];
+            auto& s = by_d2[size_t(dx * dx + dy * dy)];
             s.first += std::abs(c - g(y + dy, x + dx));
             s.second += 1;
           }
@@ -79,7 +80,8 @@ FbmModel FitFbm(const std::vector<cv::Mat>& images, const std::vector<cv::Mat>& 
           "fBm fit: fewer than 500 usable non-building pixels");
   // Least squares: ln E|dI| = ln k + H ln d, one equation per distance.
   double sx = 0, sy = 0, sxx = 0, sxy = 0, n = 0;
-  for (auto& [d2, s] : by_d2) {
+  for (size_t d2 = 1; d2 < by_d2.size(); ++d2) {
+    const auto& s = by_d2[d2];
     if (s.second < 10) continue;
     const double mean = std::max(s.first / s.second, 1e-3);
     const double lx = 0.5 * std::log(static_cast<double>(d2)), ly = std::log(mean);
@@ -94,12 +96,14 @@ FbmModel FitFbm(const std::vector<cv::Mat>& images, const std::vector<cv::Mat>& 
   // Natural OFE level: mean OFE over the masked training pixels.
   m.ofe = 1;  // placeholder so OverallFractalError accepts the model
   double sum = 0, cnt = 0;
+  if (ofe_maps) ofe_maps->clear();
   for (size_t i = 0; i < grays.size(); ++i) {
-    cv::Mat1f ofe = OverallFractalError(grays[i], m);
+    cv::Mat1f ofe = OverallFractalError(grays[i], m);  // the map does not depend on m.ofe
     cv::Mat1b mk = masks[i];
     for (int y = r; y < ofe.rows - r; y += stride)
       for (int x = r; x < ofe.cols - r; x += stride)
         if (mk(y, x)) { sum += ofe(y, x); cnt += 1; }
+    if (ofe_maps) ofe_maps->push_back(std::move(ofe));
   }
   m.ofe = std::max(sum / std::max(cnt, 1.0), 1e-3);
   return m;

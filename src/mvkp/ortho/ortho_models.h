@@ -39,9 +39,12 @@ struct FbmModel {
 // each image (8-bit BGR or grey; masks CV_8U of the same size). Pairs whose
 // both ends are masked, at all offsets inside the window, every `stride`-th
 // pixel. Throws Error(kInvalidArgument) on mismatched inputs or when fewer
-// than 500 masked pixels are usable.
+// than 500 masked pixels are usable. `ofe` (optional): the images'
+// OverallFractalError maps under the fitted model, which the fit computes
+// for the natural OFE level anyway (a caller that needs them saves a
+// second pass over every pixel).
 FbmModel FitFbm(const std::vector<cv::Mat>& images, const std::vector<cv::Mat>& masks,
-                int window = 7, int stride = 2);
+                int window = 7, int stride = 2, std::vector<cv::Mat1f>* ofe = nullptr);
 
 // Overall fractal error of every pixel of an 8-bit grey image (CV_32F), for
 // the whole image at once with box filters (about 4 ms per megapixel and
