@@ -159,6 +159,28 @@ TEST(Aerial, OutlineSearchAnswersPassTheRoofVeto) {
   }
 }
 
+// Issue 21 (seed 124, classic photos of other ground, scene 7): on the
+// photo with its cast shadows relit (the fallback pass), the single-pair
+// route registered a photo of other ground with 4 of 8
+// outlines on edges (contrast 3.18, margin 0.54) and roofs of 0.54 over 6
+// outlines, let through because its edges were above roof_veto_below. One
+// region pair now needs its roofs set apart whatever the edges. (`mvkp
+// synth-city --no-overlap --seed 1124`, scene 7; another compiler's
+// rounding draws another scene, which must be refused as well.)
+TEST(Aerial, SinglePairAnswersNeedRoofsApart) {
+  CityOptions o;
+  o.overlap = false;
+  const City c = MakeCity(o, 1124003379u);
+  const AerialRegistration r = ExpectRefused(c);
+  const size_t at = r.registration.reason.find("one region pair needs roofs set apart");
+  if (at != std::string::npos) {
+    double roofs = 9;
+    ASSERT_EQ(std::sscanf(r.registration.reason.c_str() + at, "one region pair needs roofs set apart from the "
+                                                                "ground (roof contrast %lf", &roofs), 1);
+    EXPECT_LT(roofs, EdgeEvidenceOptions{}.roof_veto);
+  }
+}
+
 // Options under which the region routes find nothing (1000 region pairs
 // needed, no single-pair route): kAuto then falls back to the outline
 // search on whatever scene a compiler's rounding draws.

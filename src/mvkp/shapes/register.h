@@ -106,7 +106,13 @@ struct RegistrationOptions {
   // layout: >= single_pair_min_outlines depth outlines in view,
   // single_pair_min_on_edges of them on edges, and a margin over the best
   // clearly different pose, whatever its outlines in view (confidence =
-  // (z1 - z2) / z1 >= single_pair_min_confidence).
+  // (z1 - z2) / z1 >= single_pair_min_confidence). One pair is the
+  // weakest evidence, so its roofs must stand apart however clear the
+  // edges: a roof contrast below EdgeEvidenceOptions::roof_veto (over
+  // min_roof_veto_regions outlines or more) refuses it even at an edge
+  // contrast above roof_veto_below (a photo of other ground: edges 3.18,
+  // roofs 0.54 over 6 outlines; the route's right answers score roofs
+  // 1.74-3.98).
   bool single_pair_route = true;
   double single_pair_min_seed_contrast = 1.2;  // a pair's raw transform must score this to be refined
   int single_pair_poses = 8;                   // distinct poses refined and compared
