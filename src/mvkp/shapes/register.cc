@@ -696,20 +696,19 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
   EdgeScore e3;
   if (LeanAnswerPasses(ev, T3, lean, e, opt, extent, photo[hyps[best.h].p].centroid, &e3))
     T = T3, e = e3, res->lean_px_per_m = lean;
-  // the roofs, whatever the edges (see RegistrationOptions::single_pair_route)
-  auto roofs_apart = [&](const EdgeScore& s) {
-    return s.roof_regions < ev.options().min_roof_veto_regions || ev.options().roof_veto <= 0 ||
-           s.roof_contrast >= ev.options().roof_veto;
+  // The roof veto, and then the roofs whatever the edges (see
+  // RegistrationOptions::single_pair_route): "" when the pose passes.
+  auto roofs = [&](const cv::Matx33d& P, cv::Point2d l, EdgeScore* s) -> std::string {
+    if (std::string veto = RoofVeto(ev, P, l, s); !veto.empty()) return veto;
+    const EdgeEvidenceOptions& eo = ev.options();
+    if (s->roof_regions < eo.min_roof_veto_regions || eo.roof_veto <= 0 || s->roof_contrast >= eo.roof_veto) return {};
+    return cv::format("one region pair needs roofs set apart from the ground (roof contrast %.2f < %.2f over %d "
+                      "outlines)",
+                      s->roof_contrast, eo.roof_veto, s->roof_regions);
   };
-  if (const std::string veto = RoofVeto(ev, T, res->lean_px_per_m, &e); !veto.empty()) {
+  if (const std::string veto = roofs(T, res->lean_px_per_m, &e); !veto.empty()) {
     res->lean_px_per_m = {};
     return what + "; " + veto;
-  }
-  if (!roofs_apart(e)) {
-    res->lean_px_per_m = {};
-    return what + cv::format("; one region pair needs roofs set apart from the ground (roof contrast %.2f < %.2f over "
-                             "%d outlines)",
-                             e.roof_contrast, ev.options().roof_veto, e.roof_regions);
   }
   if (persp && opt.ambiguity_px > 0) {
     res->ambiguity_px = AmbiguityGap(ev, T, res->lean_px_per_m, opt, extent);
@@ -724,7 +723,7 @@ static std::string SinglePairRoute(const std::vector<Region>& photo, const std::
     const EdgeEvidence::Relocation rl = ev.Relocate(T, res->lean_px_per_m, persp);
     EdgeScore er = rl.edge;
     if (rl.moved && NadirShape(rl.photo_to_depth, extent, opt).empty() &&
-        RoofVeto(ev, rl.photo_to_depth, rl.lean, &er).empty() && roofs_apart(er))
+        roofs(rl.photo_to_depth, rl.lean, &er).empty())
       T = rl.photo_to_depth, e = er, res->lean_px_per_m = rl.lean, res->relocated_px = rl.moved_px;
   }
   // region pairs consistent with the answer, for the correspondences
