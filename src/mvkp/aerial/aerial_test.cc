@@ -106,8 +106,8 @@ TEST(Aerial, OutlineSearchRefusesOtherGround) {
 
 // Registers a photo of other ground with the default options and expects
 // "no registration found".
-AerialRegistration ExpectRefused(const City& c) {
-  AerialRegistration r = RegisterAerial(c.depth, c.photo);
+AerialRegistration ExpectRefused(const City& c, const AerialOptions& options = {}) {
+  AerialRegistration r = RegisterAerial(c.depth, c.photo, options);
   EXPECT_FALSE(r.registration.ok) << "other ground registered (" << r.registration.reason << ")";
   EXPECT_EQ(r.registration.reason.rfind("no registration found", 0), 0u) << r.registration.reason;
   return r;
@@ -165,13 +165,18 @@ TEST(Aerial, OutlineSearchAnswersPassTheRoofVeto) {
 // outlines on edges (contrast 3.18, margin 0.54) and roofs of 0.54 over 6
 // outlines, let through because its edges were above roof_veto_below. One
 // region pair now needs its roofs set apart whatever the edges. (`mvkp
-// synth-city --no-overlap --seed 1124`, scene 7; another compiler's
-// rounding draws another scene, which must be refused as well.)
+// synth-city --no-overlap --seed 1124`, scene 7.) With the default margin
+// (0.5) this scene's pair stops at 0.49, before the roofs are looked at;
+// the margin is lowered to 0.45 here so that the roof rule is what refuses
+// it. Another compiler's rounding may draw another scene, which must be
+// refused as well, for whatever reason.
 TEST(Aerial, SinglePairAnswersNeedRoofsApart) {
   CityOptions o;
   o.overlap = false;
   const City c = MakeCity(o, 1124003379u);
-  const AerialRegistration r = ExpectRefused(c);
+  AerialOptions ao;
+  ao.registration.single_pair_min_confidence = 0.45;
+  const AerialRegistration r = ExpectRefused(c, ao);
   const size_t at = r.registration.reason.find("one region pair needs roofs set apart");
   if (at != std::string::npos) {
     double roofs = 9;
@@ -179,6 +184,10 @@ TEST(Aerial, SinglePairAnswersNeedRoofsApart) {
                                                                 "ground (roof contrast %lf", &roofs), 1);
     EXPECT_LT(roofs, EdgeEvidenceOptions{}.roof_veto);
   }
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+  // the scene this was found on (GCC, x86-64): the roof rule is what refuses it
+  EXPECT_NE(at, std::string::npos) << r.registration.reason;
+#endif
 }
 
 // Options under which the region routes find nothing (1000 region pairs
