@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mvkp/core/error.h"
+#include "mvkp/shapes/internal/edge_kernels.h"
 
 namespace mvkp {
 
@@ -42,15 +43,6 @@ void EdgeEvidenceOptions::Check() const {
 }
 
 namespace {
-
-// Bilinear sample of a CV_32F image; the caller keeps (x, y) inside [0, w-1) x [0, h-1).
-inline float At(const cv::Mat& m, float x, float y) {
-  const int x0 = int(x), y0 = int(y);
-  const float fx = x - float(x0), fy = y - float(y0);
-  const float* r0 = m.ptr<float>(y0) + x0;
-  const float* r1 = m.ptr<float>(y0 + 1) + x0;
-  return (r0[0] * (1 - fx) + r0[1] * fx) * (1 - fy) + (r1[0] * (1 - fx) + r1[1] * fx) * fy;
-}
 
 inline cv::Point2d Map(const cv::Matx33d& H, cv::Point2d p) {
   const double w = H(2, 0) * p.x + H(2, 1) * p.y + H(2, 2);
@@ -170,40 +162,41 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
 double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offset_px, double search_px, int* points,
                             const cv::Rect2d* support, std::vector<double>* region_sum,
                             std::vector<int>* region_count, int stride) const {
-  const float w = float(grey_.cols), h = float(grey_.rows);
-  double sum = 0;
-  int count = 0;
+  internal::EdgeTapArgs a;
+  a.image = grey_.ptr<float>(0);
+  a.step = std::ptrdiff_t(grey_.step1());
+  a.width = float(grey_.cols), a.height = float(grey_.rows);
+  for (int i = 0; i < 9; ++i) a.D[i] = D.val[i];
+  a.lean_x = lean.x, a.lean_y = lean.y;
+  a.offset_px = offset_px, a.search_px = search_px;
   // a point is scored when the whole reference window (+-offset) fits, so
   // on and off are averaged over the same outline points
-  const double reach = opt_.offset_px + opt_.search_px;
-  for (size_t si = 0; si < samples_.size(); si += size_t(stride)) {
-    const Sample& s = samples_[si];
-    if (support && !support->contains(cv::Point2d(s.q))) continue;
-    const cv::Point2d q = cv::Point2d(s.q) + lean * double(s.h);
-    const cv::Point2d p = Map(D, q);
-    const cv::Point2d pn = Map(D, q + cv::Point2d(s.n));
-    cv::Point2d nu = pn - p;
-    // image px per depth px (not std::hypot: glibc's took 14 % of a registration)
-    const double k = std::sqrt(nu.x * nu.x + nu.y * nu.y);
-    if (!(k > 1e-6) || k > 100) continue;
-    nu *= 1.0 / k;
-    const double r = std::max(reach * k, 4.0 + opt_.search_px * k) + 2;
-    if (!(p.x - r >= 0 && p.y - r >= 0 && p.x + r < w - 1 && p.y + r < h - 1)) continue;
-    const double half = search_px * k;
-    const int steps = half > 0 ? std::max(1, int(std::ceil(half))) : 0;
-    // the reference stays clear of the edge's blur however coarse the photo
-    const double centre = offset_px == 0 ? 0.0 : std::copysign(std::max(std::abs(offset_px) * k, 4.0), offset_px);
-    const float ux = float(nu.x), uy = float(nu.y);
-    float best = 0;
-    for (int i = -steps; i <= steps; ++i) {
-      const double t = centre + (steps ? half * i / steps : 0.0);
-      const float x = float(p.x + nu.x * t), y = float(p.y + nu.y * t);
-      const float g = 0.5f * (At(grey_, x + ux, y + uy) - At(grey_, x - ux, y - uy));
-      best = std::max(best, std::abs(g));
+  a.reach_px = opt_.offset_px + opt_.search_px, a.fit_search_px = opt_.search_px;
+  const internal::EdgeTapsFn taps = internal::BestEdgeTaps(a);
+  double sum = 0;
+  int count = 0;
+  // blocks of samples, packed (the kernels read them as columns), scored,
+  // then summed in sample order
+  constexpr int kBlock = 64;
+  float qx[kBlock], qy[kBlock], nx[kBlock], ny[kBlock], hs[kBlock], best[kBlock];
+  int region[kBlock];
+  std::uint8_t valid[kBlock];
+  for (size_t si = 0; si < samples_.size();) {
+    int n = 0;
+    for (; n < kBlock && si < samples_.size(); si += size_t(stride)) {
+      const Sample& s = samples_[si];
+      if (support && !support->contains(cv::Point2d(s.q))) continue;
+      qx[n] = s.q.x, qy[n] = s.q.y, nx[n] = s.n.x, ny[n] = s.n.y, hs[n] = s.h, region[n] = s.region;
+      ++n;
     }
-    sum += best;
-    ++count;
-    if (region_sum) (*region_sum)[size_t(s.region)] += best, ++(*region_count)[size_t(s.region)];
+    if (n == 0) break;
+    taps(a, qx, qy, nx, ny, hs, n, best, valid);
+    for (int i = 0; i < n; ++i) {
+      if (!valid[i]) continue;
+      sum += best[i];
+      ++count;
+      if (region_sum) (*region_sum)[size_t(region[i])] += best[i], ++(*region_count)[size_t(region[i])];
+    }
   }
   *points = count;
   return count ? sum / count : 0.0;
