@@ -150,6 +150,10 @@ EdgeEvidence::EdgeEvidence(const cv::Mat& photo, double photo_scale, const std::
     for (size_t i = 0; i < kMaxSamples; ++i) kept.push_back(samples_[i * samples_.size() / kMaxSamples]);
     samples_.swap(kept);
   }
+  for (const Sample& s : samples_) {
+    col_qx_.push_back(s.q.x), col_qy_.push_back(s.q.y), col_nx_.push_back(s.n.x), col_ny_.push_back(s.n.y);
+    col_h_.push_back(s.h);
+  }
   if (!heights.empty() && !samples_.empty()) {
     std::vector<float> hs;
     for (const Sample& s : samples_) hs.push_back(s.h);
@@ -175,27 +179,41 @@ double EdgeEvidence::OnEdge(const cv::Matx33d& D, cv::Point2d lean, double offse
   const internal::EdgeTapsFn taps = internal::BestEdgeTaps(a);
   double sum = 0;
   int count = 0;
-  // blocks of samples, packed (the kernels read them as columns), scored,
-  // then summed in sample order
-  constexpr int kBlock = 64;
-  float qx[kBlock], qy[kBlock], nx[kBlock], ny[kBlock], hs[kBlock], best[kBlock];
-  int region[kBlock];
+  constexpr int kBlock = 128;
+  float best[kBlock];
   std::uint8_t valid[kBlock];
-  for (size_t si = 0; si < samples_.size();) {
-    int n = 0;
-    for (; n < kBlock && si < samples_.size(); si += size_t(stride)) {
-      const Sample& s = samples_[si];
-      if (support && !support->contains(cv::Point2d(s.q))) continue;
-      qx[n] = s.q.x, qy[n] = s.q.y, nx[n] = s.n.x, ny[n] = s.n.y, hs[n] = s.h, region[n] = s.region;
-      ++n;
-    }
-    if (n == 0) break;
-    taps(a, qx, qy, nx, ny, hs, n, best, valid);
+  // sums in sample order; sample i of the block is index[i] (or first + i)
+  auto add = [&](int n, const int* index, size_t first) {
     for (int i = 0; i < n; ++i) {
       if (!valid[i]) continue;
       sum += best[i];
       ++count;
-      if (region_sum) (*region_sum)[size_t(region[i])] += best[i], ++(*region_count)[size_t(region[i])];
+      if (region_sum) {
+        const size_t r = size_t(samples_[index ? size_t(index[i]) : first + size_t(i)].region);
+        (*region_sum)[r] += best[i], ++(*region_count)[r];
+      }
+    }
+  };
+  if (stride == 1 && !support) {  // every sample: the columns as they are
+    for (size_t s0 = 0; s0 < samples_.size(); s0 += kBlock) {
+      const int n = int(std::min<size_t>(kBlock, samples_.size() - s0));
+      taps(a, &col_qx_[s0], &col_qy_[s0], &col_nx_[s0], &col_ny_[s0], &col_h_[s0], n, best, valid);
+      add(n, nullptr, s0);
+    }
+  } else {  // every stride-th sample in the support, packed
+    float qx[kBlock], qy[kBlock], nx[kBlock], ny[kBlock], hs[kBlock];
+    int index[kBlock];
+    for (size_t si = 0; si < samples_.size();) {
+      int n = 0;
+      for (; n < kBlock && si < samples_.size(); si += size_t(stride)) {
+        const Sample& s = samples_[si];
+        if (support && !support->contains(cv::Point2d(s.q))) continue;
+        qx[n] = s.q.x, qy[n] = s.q.y, nx[n] = s.n.x, ny[n] = s.n.y, hs[n] = s.h, index[n] = int(si);
+        ++n;
+      }
+      if (n == 0) break;
+      taps(a, qx, qy, nx, ny, hs, n, best, valid);
+      add(n, index, 0);
     }
   }
   *points = count;

@@ -255,6 +255,8 @@ class EdgeEvidence {
   std::vector<float> outline_h_;   // their heights (0 without heights)
   double photo_scale_ = 1;
   std::vector<Sample> samples_;
+  // the samples' fields as columns, for the OnEdge kernels
+  std::vector<float> col_qx_, col_qy_, col_nx_, col_ny_, col_h_;
   int regions_ = 0;  // outlines with samples
   bool has_heights_ = false;
   double ref_height_ = 0;  // the median sample height: lean steps pivot about it

@@ -16,8 +16,10 @@ namespace {
 // img[i] and img[i + 1] for eight indices, in lane order.
 inline void Pairs(const float* img, __m256i i, __m256* left, __m256* right) {
   const double* base = reinterpret_cast<const double*>(img);
-  const __m256 lo = _mm256_castpd_ps(_mm256_i32gather_pd(base, _mm256_castsi256_si128(i), 4));
-  const __m256 hi = _mm256_castpd_ps(_mm256_i32gather_pd(base, _mm256_extracti128_si256(i, 1), 4));
+  // the masked form with a defined source: GCC 12's plain gather trips -Wmaybe-uninitialized
+  const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), zero = _mm256_setzero_pd();
+  const __m256 lo = _mm256_castpd_ps(_mm256_mask_i32gather_pd(zero, base, _mm256_castsi256_si128(i), all, 4));
+  const __m256 hi = _mm256_castpd_ps(_mm256_mask_i32gather_pd(zero, base, _mm256_extracti128_si256(i, 1), all, 4));
   // per 128-bit half: lanes (0 1 4 5) and (2 3 6 7); the 64-bit permute restores 0-7
   *left = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(lo, hi, 0x88)), 0xd8));
   *right = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(lo, hi, 0xdd)), 0xd8));

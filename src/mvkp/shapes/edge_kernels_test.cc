@@ -1,6 +1,8 @@
-// The AVX2 outline-on-edge kernel must equal the scalar reference bit for
-// bit: the registration's answers may not depend on the CPU.
+// The AVX2 kernels of the shapes library (outline on edge, shape-context
+// shift sums) must equal their scalar references bit for bit: the
+// registration's answers may not depend on the CPU.
 #include "mvkp/shapes/internal/edge_kernels.h"
+#include "mvkp/shapes/internal/shift_kernels.h"
 
 #include <cmath>
 #include <cstring>
@@ -101,6 +103,32 @@ TEST(EdgeKernels, ScalarFindsTheEdgeItSits) {
   const float qb[1] = {3.f};
   EdgeTapsScalar(a, qb, qy, nx, ny, h, 1, best, valid);
   EXPECT_EQ(valid[0], 0);
+}
+
+TEST(ShiftKernels, Avx2EqualsScalarBitForBit) {
+  if (!HasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(61206);
+  std::uniform_real_distribution<float> U(0, 1);
+  for (int trial = 0; trial < 60; ++trial) {
+    const int n = 3 + trial * 2, B = 1 + trial % 61;  // odd and even lengths, every tail
+    const int lda = B + trial % 3, ldb = n + trial % 5;  // row steps beyond the rows
+    std::vector<float> a(size_t(n * lda)), bt(size_t(B * ldb));
+    for (float& v : a) v = U(rng) < 0.6f ? 0.f : U(rng);  // sparse, like sqrt histograms
+    for (float& v : bt) v = U(rng) < 0.6f ? 0.f : U(rng);
+    std::vector<double> s1(size_t(n), -1), s2(size_t(n), -2);
+    std::vector<float> row(s1.size());
+    ShiftSumsScalar(a.data(), lda, bt.data(), ldb, n, B, s1.data(), row.data());
+    ShiftSumsAvx2(a.data(), lda, bt.data(), ldb, n, B, s2.data(), row.data());
+    ASSERT_EQ(std::memcmp(s1.data(), s2.data(), s1.size() * sizeof(double)), 0) << "n " << n << " B " << B;
+    // and the sums are the shift correlations they stand for
+    for (int k = 0; k < n; k += 7) {
+      double want = 0;
+      for (int j = 0; j < n; ++j)
+        for (int b = 0; b < B; ++b)
+          want += double(a[size_t(j * lda + b)]) * bt[size_t(b * ldb + (j + k) % n)];
+      EXPECT_NEAR(s1[size_t(k)], want, 1e-4 * (1 + want)) << "n " << n << " k " << k;
+    }
+  }
 }
 
 }  // namespace

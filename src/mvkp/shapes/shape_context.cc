@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mvkp/core/error.h"
+#include "mvkp/shapes/internal/shift_kernels.h"
 
 namespace mvkp {
 
@@ -162,24 +163,12 @@ std::vector<double> ShiftCosts(const ShapeDescriptor& a, const ShapeDescriptor& 
   CV_Assert(n > 0 && b.hist.rows == n && b.hist.cols == B);
   cv::Mat bt_local;
   const cv::Mat& bt = b.hist_t.rows == B && b.hist_t.cols == n ? b.hist_t : (bt_local = b.hist.t());
-  // s(j, i) = <a_j, b_i>, row by row as axpy over the (sparse) bins of a_j;
-  // cost[k] accumulates the diagonal i = (j + k) % n.
-  std::vector<float> row(n);
-  std::vector<double> cost(n, 0.0);
-  for (int j = 0; j < n; ++j) {
-    std::fill(row.begin(), row.end(), 0.0f);
-    const float* aj = a.hist.ptr<float>(j);
-    for (int k = 0; k < B; ++k) {
-      const float w = aj[k];
-      if (w == 0.0f) continue;
-      const float* bk = bt.ptr<float>(k);
-      for (int i = 0; i < n; ++i) row[i] += w * bk[i];
-    }
-    for (int k = 0, i = j; k < n; ++k) {
-      cost[k] += row[i];
-      if (++i == n) i = 0;
-    }
-  }
+  CV_Assert(a.hist.type() == CV_32F && bt.type() == CV_32F);
+  const size_t len = static_cast<size_t>(n);
+  std::vector<float> row(len);
+  std::vector<double> cost(len, 0.0);
+  internal::BestShiftSums()(a.hist.ptr<float>(0), int(a.hist.step1()), bt.ptr<float>(0), int(bt.step1()), n, B,
+                           cost.data(), row.data());
   for (double& c : cost) c = std::clamp(1.0 - c / n, 0.0, 1.0);
   return cost;
 }
