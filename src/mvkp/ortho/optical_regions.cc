@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mvkp/core/error.h"
+#include "mvkp/ortho/internal/colour_canny.h"
 
 namespace mvkp {
 
@@ -86,7 +87,7 @@ Maps BuildMaps(const cv::Mat3b& bgr, const OpticalSegmentOptions& o) {
 
   // Edge map: Canny on the smoothed colour photo (max gradient over channels).
   cv::Mat1b canny;
-  cv::Canny(m.img, canny, o.canny_low, o.canny_high, 3, true);
+  internal::ColourCanny(m.img, &canny, o.canny_low, o.canny_high, true);
   m.edge = cv::Mat1b(bgr.size(), kNoEdge);
   cv::Mat3b hsv;
   cv::Mat1s gx, gy;
