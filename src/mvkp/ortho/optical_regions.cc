@@ -277,9 +277,12 @@ std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& 
   // second int map of ids.
   cv::Mat1i label(size, 0);
   cv::Mat1b tested(size, uchar(0));
-  std::vector<cv::Point> touched;
+  // pixels as y * cols + x (4 bytes, not a cv::Point's 8: a segment of the
+  // open ground queues and touches most of the photo)
+  Require(double(rows) * cols < 2147483647.0, ErrorCode::kInvalidArgument, "SegmentOptical: image too large");
+  std::vector<int> touched;
   std::vector<Segment> segs(1);  // index 0 unused
-  std::vector<cv::Point> queue;
+  std::vector<int> queue;
   queue.reserve(4096);
 
   auto seed_ok = [&](int y, int x) {
@@ -298,14 +301,14 @@ std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& 
     s.box = cv::Rect(sx, sy, 1, 1);
     int x0 = sx, x1 = sx, y0 = sy, y1 = sy;
     queue.clear();
-    queue.emplace_back(sx, sy);
+    queue.push_back(sy * cols + sx);
     label(sy, sx) = id;
     touched.clear();
-    touched.emplace_back(sx, sy);
+    touched.push_back(sy * cols + sx);
     tested(sy, sx) = 1;
     static const int dxs[4] = {1, -1, 0, 0}, dys[4] = {0, 0, 1, -1};
     for (size_t qi = 0; qi < queue.size(); ++qi) {
-      const cv::Point p = queue[qi];
+      const cv::Point p(queue[qi] % cols, queue[qi] / cols);
       const cv::Vec3b c = m.img(p);
       s.area += 1;
       s.sum[0] += c[0]; s.sum[1] += c[1]; s.sum[2] += c[2];  // (the seed's colour before its neighbours are tested)
@@ -317,7 +320,7 @@ std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& 
         uchar& t = tested(y, x);
         if (t || label(y, x)) continue;
         t = 1;
-        touched.emplace_back(x, y);
+        touched.push_back(y * cols + x);
         if (m.barrier(y, x)) continue;  // true edge: neither accepted nor expanded
         if (opt.use_vegetation && m.veg(y, x)) continue;
         if (opt.use_shadow && m.shadow(y, x)) continue;
@@ -341,12 +344,13 @@ std::vector<PhotoRegion> SegmentBgr(cv::Mat3b bgr, const OpticalSegmentOptions& 
         s.lo = std::min(s.lo, I);
         s.hi = std::max(s.hi, I);
         label(y, x) = id;
-        queue.emplace_back(x, y);
+        queue.push_back(y * cols + x);
       }
     }
     s.box = cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
     segs.push_back(s);
-    for (const cv::Point& q : touched) tested(q) = 0;
+    uchar* const t0 = tested.ptr<uchar>(0);  // continuous: allocated here
+    for (const int q : touched) t0[q] = 0;
   };
 
   // Grid seeds with four-way subdivision.
