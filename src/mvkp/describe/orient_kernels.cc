@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "mvkp/core/internal/cpu.h"
+
 namespace mvkp::internal {
 
 DiscTable::DiscTable(int radius) : r(radius), umax(std::size_t(radius) + 1) {
@@ -39,17 +41,7 @@ void DiscMomentsScalar(const std::uint8_t* centre, std::ptrdiff_t step, const Di
   m01 = b;
 }
 
-namespace {
-bool HasAvx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2");
-  }();
-  return has;
-}
-}  // namespace
-
-DiscMomentsFn DiscMomentsSimd() { return HasAvx2() ? DiscMomentsAvx2 : nullptr; }
+DiscMomentsFn DiscMomentsSimd() { return CpuHasAvx2() ? DiscMomentsAvx2 : nullptr; }
 
 void BilinearRow8Scalar(const float* img, std::ptrdiff_t stride, float cx, float cy, float c, float s,
                         const float* offs, float oy, float* out) {
@@ -64,6 +56,6 @@ void BilinearRow8Scalar(const float* img, std::ptrdiff_t stride, float cx, float
   }
 }
 
-BilinearRow8Fn BestBilinearRow8() { return HasAvx2() ? BilinearRow8Avx2 : BilinearRow8Scalar; }
+BilinearRow8Fn BestBilinearRow8() { return CpuHasAvx2() ? BilinearRow8Avx2 : BilinearRow8Scalar; }
 
 }  // namespace mvkp::internal

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "mvkp/core/internal/cpu.h"
+
 namespace mvkp::internal {
 
 namespace {
@@ -60,20 +62,10 @@ void EdgeTapsScalar(const EdgeTapArgs& a, const float* qx, const float* qy, cons
   }
 }
 
-namespace {
-bool HasAvx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2");
-  }();
-  return has;
-}
-}  // namespace
-
 EdgeTapsFn BestEdgeTaps(const EdgeTapArgs& a) {
   // the AVX2 gathers take 32-bit element indices
   const double last = double(a.step) * (double(a.height) + 1);
-  return HasAvx2() && last < double(std::numeric_limits<int>::max()) ? EdgeTapsAvx2 : EdgeTapsScalar;
+  return CpuHasAvx2() && last < double(std::numeric_limits<int>::max()) ? EdgeTapsAvx2 : EdgeTapsScalar;
 }
 
 }  // namespace mvkp::internal

@@ -13,16 +13,13 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/core/internal/cpu.h"
+
 namespace mvkp::internal {
 namespace {
 
-bool HasAvx2() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2");
-}
-
 TEST(EdgeKernels, Avx2EqualsScalarBitForBit) {
-  if (!HasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  if (!CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
   std::mt19937_64 rng(20261206);
   std::uniform_real_distribution<double> U(0, 1);
   // a smooth-ish photo with edges, not a multiple of 8 wide, with a row step larger than its width
@@ -106,7 +103,7 @@ TEST(EdgeKernels, ScalarFindsTheEdgeItSits) {
 }
 
 TEST(ShiftKernels, Avx2EqualsScalarBitForBit) {
-  if (!HasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  if (!CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
   std::mt19937_64 rng(61206);
   std::uniform_real_distribution<float> U(0, 1);
   for (int trial = 0; trial < 60; ++trial) {

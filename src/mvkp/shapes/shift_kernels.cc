@@ -1,5 +1,6 @@
 #include "mvkp/shapes/internal/shift_kernels.h"
 
+#include "mvkp/core/internal/cpu.h"
 #include "shift_kernels_impl.h"
 
 namespace mvkp::internal {
@@ -9,11 +10,7 @@ void ShiftSumsScalar(const float* a, int lda, const float* bt, int ldb, int n, i
 }
 
 ShiftSumsFn BestShiftSums() {
-  static const ShiftSumsFn fn = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") ? ShiftSumsAvx2 : ShiftSumsScalar;
-  }();
-  return fn;
+  return CpuHasAvx2() ? ShiftSumsAvx2 : ShiftSumsScalar;
 }
 
 }  // namespace mvkp::internal
