@@ -147,6 +147,7 @@ struct RegisterArgs {
   bool shadow_fallback = AerialOptions{}.shadow_fallback;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
+  double outline_relocate_confidence = AerialOptions{}.outline_relocate_confidence;
   RegistrationOptions opt;
   EdgeEvidenceOptions edge;
 };
@@ -230,6 +231,7 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.outline.min_confidence = a.min_confidence;
     ao.auto_outline_max_regions = a.outline_max_regions;
     ao.outline_max_side = a.outline_max_side;
+    ao.outline_relocate_confidence = a.outline_relocate_confidence;
     ao.photo_res_m = img.res_m;
     ao.depth_res_m = d.res_m;
     const cv::Size photo_size = img.bgr.size(), depth_size = d.z.size();
@@ -401,6 +403,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "outline search: the side of the photo copy it searches, px (0: the working photo; else >= 64)")
       ->capture_default_str()
       ->check(CLI::Range(0, 20000));
+  c->add_option("--outline-relocate-confidence", a->outline_relocate_confidence,
+                "outline search: its refused best pose is relocated onto the edges and judged again when its "
+                "confidence reaches this (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   c->add_flag("--principal-directions", a->opt.use_principal_directions,
               "try rotations from the scenes' principal directions first (thesis 7.2.4; falls back)");
   c->add_option("--seed", a->opt.seed, "hypothesis order seed")->capture_default_str();

@@ -70,6 +70,12 @@ struct AerialOptions {
                                       //   memory (~45 MB at 1200 px); the image check that refines and
                                       //   judges its answer keeps the working photo
   OutlineSearchOptions outline;
+  // The outline search's best pose, refused but a clear winner (its
+  // confidence >= this; 0: off), is relocated (EdgeEvidence::Relocate) and
+  // becomes its answer when the outlines then lie on edges as the search
+  // asks (contrast, min_on_edges); every later check still applies
+  // (docs/aerial.md, "A clear winner relocated").
+  double outline_relocate_confidence = 0.75;
   // Ground size of a pixel, metres (0: unknown). When both are known the
   // outline search looks only near their ratio of scales.
   double photo_res_m = 0, depth_res_m = 0;

@@ -571,6 +571,7 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   // 3.3-8.6 px from the truth (issue 21, docs/aerial.md); no small-tile
   // answer of seeds 108-111 changed.
   const bool held = !evidence || !o.perspective || moved < o.distinct_px;
+  res.held = held;
   res.ok = res.confidence >= o.min_confidence && edge_ok && res.outlines_in_view >= o.min_outlines && held;
   res.reason = cv::format("outline search: score %.1f, runner-up %.1f, confidence %.2f, coverage %.2f, %d outlines in view, %d poses",
                           best.z, runner, res.confidence, best.coverage, res.outlines_in_view, res.poses);

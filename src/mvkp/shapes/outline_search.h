@@ -92,6 +92,7 @@ struct OutlineSearchResult {
   cv::Point2d lean_px_per_m{0, 0};   // the photo's lean estimated by the final refinement (edge_evidence.h)
   double relocated_px = 0;           // how far EdgeEvidence::Relocate moved the answer (depth px; 0: kept)
   bool roof_vetoed = false;          // set by RegisterAerial: refused by the roof veto (roof_veto, edge_evidence.h)
+  bool held = true;                  // the image check's perspective refinement left the pose < distinct_px
   int poses = 0;                     // (rotation, scale) pairs correlated
   double ambiguity_px = 0;           // set by RegisterAerial: the mean gap to an equally good pose
                                      //   (AmbiguityGap, register.h) when it judged the answer
