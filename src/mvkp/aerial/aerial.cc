@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <string>
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
@@ -61,6 +62,13 @@ struct PassState {
   std::vector<BuildingRegion> dregions;
   double segment_depth_ms = 0;
 };
+
+// A reason without its leading "no registration found: ", to be quoted
+// inside another.
+std::string WithoutNoRegistration(const std::string& reason) {
+  static const std::string kPrefix = "no registration found: ";
+  return reason.rfind(kPrefix, 0) == 0 ? reason.substr(kPrefix.size()) : reason;
+}
 
 // One pass of the pipeline. `reuse`: the state of an earlier pass, taken
 // over (moved: one working photo in memory, not two; the photo and depth
@@ -165,7 +173,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
         out.photo_regions = std::move(up_regions), out.photo_region_confidence = std::move(up_confidence);
       } else {
         out.registration.reason += cv::format("; segmented %.2fx: ", upscale) +
-                                   r2.reason.substr(r2.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0);
+                                   WithoutNoRegistration(r2.reason);
         out.registration.match_ms = r2.match_ms, out.registration.propagate_ms = r2.propagate_ms;
       }
     }
@@ -226,7 +234,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
       out.outline.ok = true;
       out.outline.photo_to_depth = rl.photo_to_depth, out.outline.lean_px_per_m = rl.lean, out.outline.edge = e;
       out.outline.relocated_px = rl.moved_px;
-      out.outline.reason = out.outline.reason.substr(out.outline.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0) +
+      out.outline.reason = WithoutNoRegistration(out.outline.reason) +
                            cv::format(", relocated %.1f px onto edges (contrast %.2f, %d of %d outlines)", rl.moved_px,
                                       e.contrast, e.regions_on_edges, e.regions);
     }
@@ -302,7 +310,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
     out.method = "outlines";
     out.confidence = out.outline.ok ? out.outline.confidence : 0.0;
   } else {
-    out.registration.reason += "; " + out.outline.reason.substr(out.outline.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0);
+    out.registration.reason += "; " + WithoutNoRegistration(out.outline.reason);
     out.confidence = 0;
   }
   return out;
@@ -334,7 +342,7 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   if (!second.registration.ok) {
     first.shadows = second.shadows;
     first.registration.reason += "; with the cast shadows relit: " +
-        second.registration.reason.substr(second.registration.reason.rfind("no registration found: ", 0) == 0 ? 23 : 0);
+        WithoutNoRegistration(second.registration.reason);
     return first;
   }
   second.shadow_fallback_used = true;
