@@ -347,6 +347,8 @@ def main():
                 row["confidence"] = j["confidence"]
             if j.get("shadows"):
                 row["shadow_fallback"] = bool(j["shadows"].get("fallback_answer"))
+            if j.get("cast_shadows"):
+                row["cast_shadows"] = j["cast_shadows"]
             if j["ok"]:
                 e, nvis = corner_error(h_of(j["homography"]), Ht, truth["corners"], psize)
                 row.update(corner_error=e, corners_visible=nvis, homography=j["homography"])

@@ -145,6 +145,7 @@ struct RegisterArgs {
   double photo_max_upscale = AerialOptions{}.photo_max_upscale;
   bool shadows = AerialOptions{}.shadows.enabled;
   bool shadow_fallback = AerialOptions{}.shadow_fallback;
+  bool cast_shadow_fallback = AerialOptions{}.cast_shadow_fallback;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
   double outline_relocate_confidence = AerialOptions{}.outline_relocate_confidence;
@@ -195,10 +196,12 @@ cv::Mat DrawRegistration(const cv::Mat& photo, const cv::Mat1f& depth, const std
 // later image-sized buffers come from the heap, whose freed pages stay
 // resident: the registration's passes over one photo ratcheted its peak RSS
 // by 10-13 MB (issue 21, seed 125: 108-112 MB -> 95-104 MB). A fixed
-// threshold keeps every buffer of 4 MB or more in its own mapping, returned
-// to the system when freed; times within the runs' noise.
+// threshold keeps every buffer of 1 MB or more (a working photo's 8-bit
+// maps; 4 MB until the depth's shadows added a pass that makes several)
+// in its own mapping, returned to the system when freed (seed 122 suburb
+// 34: 99.96 -> 95.5 MB); times within the runs' noise.
 void ReturnLargeBuffers() {
-  static const bool once = [] { return ::mallopt(M_MMAP_THRESHOLD, 4 << 20) == 1; }();
+  static const bool once = [] { return ::mallopt(M_MMAP_THRESHOLD, 1 << 20) == 1; }();
   (void)once;
 }
 
@@ -220,6 +223,7 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.photo_max_upscale = a.photo_max_upscale;
     ao.shadows.enabled = a.shadows;
     ao.shadow_fallback = a.shadow_fallback;
+    ao.cast_shadow_fallback = a.cast_shadow_fallback;
     ao.registration = a.opt;
     ao.edge = a.edge;
     ao.image_check = a.edge.min_contrast > 0;
@@ -275,6 +279,24 @@ Json RegisterCompute(RegisterArgs& a) {
                                                                  ar.shadows.log_step[2]}
                                                           : Json(nullptr)},
                       {"fraction", ar.shadows.fraction}, {"votes", ar.shadows.votes}, {"time_ms", ar.shadows.ms}};
+    // the depth's shadows (aerial/cast_shadows.h), when that fallback ran:
+    // the sun fitted at the outline search's best pose, whether the photo
+    // was relit by it, and whether the answer is that pass's
+    if (ar.cast_shadows.ms > 0 || ar.cast_shadow_fallback_used) {
+      const CastShadowFit& cf = ar.cast_shadows;
+      out["cast_shadows"] = {{"found", cf.found},
+                             {"applied", cf.applied},
+                             {"fallback_answer", ar.cast_shadow_fallback_used},
+                             {"reason", cf.reason},
+                             {"buildings", cf.buildings},
+                             {"azimuth_deg", cf.azimuth_deg},
+                             {"length_depth_px_per_m", cf.length_px_per_m},
+                             {"contrast", cf.contrast},
+                             {"margin", cf.margin},
+                             {"log_step_bgr", Json{cf.log_step[0], cf.log_step[1], cf.log_step[2]}},
+                             {"fraction", cf.fraction},
+                             {"time_ms", cf.ms}};
+    }
     if (ar.outline_search_ran) {
       const OutlineSearchResult& os = ar.outline;
       out["outline_search"] = {{"ok", os.ok},           {"confidence", os.confidence}, {"score", os.score},
@@ -491,6 +513,9 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_flag("!--no-shadow-fallback", a->shadow_fallback,
               "no second pass on the photo with its cast shadows relit when the photo as it is gives no "
               "registration (the second pass answers only by region shapes)");
+  c->add_flag("!--no-cast-shadow-fallback", a->cast_shadow_fallback,
+              "no last pass on the photo with the shadows the depth casts at the outline search's best pose "
+              "relit (aerial/cast_shadows.h; answers only by region shapes)");
   c->callback([a, code] { *code = RunRegister(*a); });
 }
 

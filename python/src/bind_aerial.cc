@@ -83,6 +83,8 @@ struct PyRegistration {
   double photo_upscale = 1;  // register_aerial: the photo regions' segmentation size / the working size
   ShadowCompensation shadows;  // register_aerial: the cast-shadow compensation (ortho/shadows.h)
   bool shadow_fallback_used = false;  // register_aerial: the answer is the shadow fallback's
+  CastShadowFit cast_shadows;        // register_aerial: the depth's shadows (aerial/cast_shadows.h)
+  bool cast_shadow_fallback_used = false;
 };
 
 }  // namespace
@@ -269,6 +271,23 @@ void BindAerial(py::module_& m) {
       }, "register_aerial: the cast-shadow compensation: applied, the shadow step found (log B, G, R; None when "
          "not applied), the fraction of the working photo relit, the edge votes for the step, and whether the answer is "
          "the shadow fallback's")
+      .def_property_readonly("cast_shadows", [](const PyRegistration& r) {
+        const CastShadowFit& c = r.cast_shadows;
+        py::dict d;
+        d["found"] = c.found;
+        d["applied"] = c.applied;
+        d["fallback_answer"] = r.cast_shadow_fallback_used;
+        d["reason"] = c.reason;
+        d["azimuth_deg"] = c.azimuth_deg;
+        d["length_depth_px_per_m"] = c.length_px_per_m;
+        d["contrast"] = c.contrast;
+        d["margin"] = c.margin;
+        d["log_step_bgr"] = py::make_tuple(c.log_step[0], c.log_step[1], c.log_step[2]);
+        d["fraction"] = c.fraction;
+        return d;
+      }, "register_aerial: the shadows the depth casts at a candidate pose (see cast_shadow_fallback): found (a sun stood out), applied (the photo relit), whether the answer is that "
+         "pass's, the shadows' azimuth (clockwise from up in the depth) and length (depth px per metre), their "
+         "darkness and margin over the other azimuths, the step (log B, G, R) and the fraction relit")
       .def_property_readonly("lean_depth_px_per_m", [](const PyRegistration& r) -> py::object {
         if (!r.reg.ok) return py::none();
         return py::make_tuple(r.reg.lean_px_per_m.x, r.reg.lean_px_per_m.y);
@@ -327,7 +346,8 @@ void BindAerial(py::module_& m) {
       "register_aerial",
       [](py::handle depth, py::handle photo, int photo_max_side, int photo_min_side, py::handle depth_options,
          py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
-         double photo_res_m, double depth_res_m, bool shadow_compensation, bool shadow_fallback, py::kwargs kw) {
+         double photo_res_m, double depth_res_m, bool shadow_compensation, bool shadow_fallback,
+         bool cast_shadow_fallback, py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -358,6 +378,7 @@ void BindAerial(py::module_& m) {
           ao.depth_res_m = depth_res_m;
           ao.shadows.enabled = shadow_compensation;
           ao.shadow_fallback = shadow_fallback;
+          ao.cast_shadow_fallback = cast_shadow_fallback;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
@@ -369,6 +390,8 @@ void BindAerial(py::module_& m) {
           out->photo_upscale = ar.photo_upscale;
           out->shadows = ar.shadows;
           out->shadow_fallback_used = ar.shadow_fallback_used;
+          out->cast_shadows = ar.cast_shadows;
+          out->cast_shadow_fallback_used = ar.cast_shadow_fallback_used;
           outline_ms = ar.outline_search_ms;
           total_ms = total.ElapsedMs();
         }
@@ -386,6 +409,7 @@ void BindAerial(py::module_& m) {
       py::arg("options") = py::none(), py::arg("method") = "auto", py::arg("photo_res_m") = 0.0,
       py::arg("depth_res_m") = 0.0, py::arg("shadow_compensation") = AerialOptions{}.shadows.enabled,
       py::arg("shadow_fallback") = AerialOptions{}.shadow_fallback,
+      py::arg("cast_shadow_fallback") = AerialOptions{}.cast_shadow_fallback,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
@@ -396,7 +420,9 @@ void BindAerial(py::module_& m) {
       "own size finds nothing (photo_segmentation_upscale says which answered). shadow_compensation (False): "
       "blue-tinted cast shadows found in the photo are relit first; shadow_fallback (True): when the photo as "
       "it is gives no registration, a second pass on it relit, answering by region shapes only (the result's "
-      "shadows says what was done). "
+      "shadows says what was done); cast_shadow_fallback (True): before that, the shadows the depth casts at a "
+      "refused candidate pose, when a sun stands out there, are relit and the region routes try again (the "
+      "result's cast_shadows). "
       "The result's method and confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)

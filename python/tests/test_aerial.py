@@ -223,3 +223,25 @@ def test_view_registrar_equals_cli(tmp_path):
             X = np.array([c["world_m"] + [1] for c in v["check_points"]]) @ r["camera"].T
             err = np.linalg.norm(X[:, :2] / X[:, 2:] - np.array([c["oblique_px"] for c in v["check_points"]]), axis=1)
             assert err.mean() <= 5, err.mean()
+
+
+def test_cast_shadow_fallback(city):
+    # the shadows the depth casts at a refused candidate pose, relit when a
+    # sun stands out there (on by default; runs only when the photo as it is
+    # gives no registration)
+    keys = {"found", "applied", "fallback_answer", "reason", "azimuth_deg", "length_depth_px_per_m", "contrast",
+            "margin", "log_step_bgr", "fraction"}
+    off = mvkp.register_aerial(city.depth, city.photo, cast_shadow_fallback=False)
+    assert set(off.cast_shadows) == keys
+    assert not off.cast_shadows["found"] and not off.cast_shadows["applied"]
+    assert not off.cast_shadows["fallback_answer"]
+    d = mvkp.register_aerial(city.depth, city.photo)
+    assert set(d.cast_shadows) == keys
+    if off.ok:  # the first pass answered: no later pass ran
+        assert d.ok and not d.cast_shadows["found"] and not d.cast_shadows["fallback_answer"]
+    if d.cast_shadows["fallback_answer"]:
+        assert d.ok and d.cast_shadows["applied"] and d.method != "outlines"
+        assert all(s < 0 for s in d.cast_shadows["log_step_bgr"])
+    if d.cast_shadows["applied"]:
+        assert d.cast_shadows["found"] and 0 <= d.cast_shadows["azimuth_deg"] < 360
+        assert d.cast_shadows["margin"] >= 0.15 and 0 < d.cast_shadows["fraction"] < 0.5

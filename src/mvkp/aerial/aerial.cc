@@ -30,6 +30,8 @@ void AerialOptions::Check() const {
   depth.Check();
   optical.Check();
   shadows.Check();
+  cast_shadows.Check();
+  Require(cast_shadow_candidates >= 0, ErrorCode::kInvalidArgument, "AerialOptions.cast_shadow_candidates must be >= 0");
   edge.Check();
   registration.Check();
   outline.Check();
@@ -175,6 +177,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
         out.registration.reason += cv::format("; segmented %.2fx: ", upscale) +
                                    WithoutNoRegistration(r2.reason);
         out.registration.match_ms = r2.match_ms, out.registration.propagate_ms = r2.propagate_ms;
+        out.registration.refused.insert(out.registration.refused.end(), r2.refused.begin(), r2.refused.end());
       }
     }
     out.method = out.registration.route;  // "regions" | "single-pair"
@@ -323,29 +326,78 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
   Require(!depth.empty(), ErrorCode::kBadImage, "aerial registration: empty depth image");
   Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
           ErrorCode::kBadImage, "aerial registration: the photo must be a non-empty 8-bit grey or BGR image");
-  // The shadow fallback (AerialOptions::shadow_fallback): only for a colour
-  // photo, and only the region routes may answer on the relit photo.
-  const bool fallback = o.shadow_fallback && !o.shadows.enabled && photo.channels() == 3 &&
-                        o.method != AerialOptions::Method::kOutlines;
+  // The shadow fallbacks (AerialOptions::cast_shadow_fallback, shadow_fallback):
+  // only for a colour photo, and only the region routes may answer on a
+  // relit photo.
+  const bool fallback = (o.shadow_fallback || o.cast_shadow_fallback) && !o.shadows.enabled &&
+                        photo.channels() == 3 && o.method != AerialOptions::Method::kOutlines;
   if (!fallback) return RegisterPass(std::move(depth), std::move(photo), o, nullptr, nullptr);
   PassState state;
   AerialRegistration first = RegisterPass(std::move(depth), std::move(photo), o, nullptr, &state);
   if (first.registration.ok) return first;
-  AerialOptions lit = o;
-  lit.shadows.enabled = true;
-  lit.method = AerialOptions::Method::kRegions;
-  AerialRegistration second = RegisterPass(cv::Mat1f(), cv::Mat(), lit, &state, nullptr);
-  if (!second.shadows.applied) {
-    first.shadows = second.shadows;  // what the compensation found (no step: nothing relit)
-    return first;
+  AerialOptions regions_only = o;
+  regions_only.method = AerialOptions::Method::kRegions;
+
+  // 1. The shadows the depth casts (cast_shadows.h) at a candidate pose: the
+  // region sets the checks refused, best first, and the outline search's
+  // best pose. A right pose's shadows stand out (seed 122 suburb: right
+  // candidates 0.24-0.35 above the median azimuth, wrong ones up to 0.18);
+  // the candidate whose shadows stand out most relights the photo, and the
+  // region routes try again on it. The relit photo is kept for step 2.
+  if (o.cast_shadow_fallback) {
+    std::vector<std::pair<cv::Matx33d, cv::Point2d>> cands;
+    for (const auto& T : first.registration.refused) {
+      if (int(cands.size()) >= o.cast_shadow_candidates) break;
+      cands.emplace_back(T, cv::Point2d());
+    }
+    if (first.outline_search_ran && first.outline.outlines_in_view > 0)
+      cands.emplace_back(first.outline.photo_to_depth, first.outline.lean_px_per_m);
+    int best = -1;
+    CastShadowFit fit;
+    double fit_ms = 0;
+    for (size_t i = 0; i < cands.size(); ++i) {
+      const CastShadowFit c =
+          FitCastShadows(state.working, state.f, cands[i].first, cands[i].second, state.dregions, o.cast_shadows);
+      fit_ms += c.ms;
+      if (c.found && (best < 0 || c.margin > fit.margin)) fit = c, best = int(i);
+    }
+    if (best >= 0) {
+      cv::Mat relit = RelightCastShadows(state.working, state.f, cands[best].first, cands[best].second,
+                                         state.dregions, o.cast_shadows, &fit);
+      if (fit.applied) state.working = std::move(relit);
+    }
+    fit.ms += fit_ms;
+    first.cast_shadows = fit;
+    if (fit.applied) {
+      PassState after;
+      AerialRegistration cast = RegisterPass(cv::Mat1f(), cv::Mat(), regions_only, &state, &after);
+      if (cast.registration.ok) {
+        cast.cast_shadows = fit;
+        cast.cast_shadow_fallback_used = true;
+        cast.segment_photo_ms += first.segment_photo_ms;
+        cast.outline_search_ms += first.outline_search_ms;
+        return cast;
+      }
+      first.registration.reason +=
+          "; with the depth's shadows relit: " + WithoutNoRegistration(cast.registration.reason);
+      state = std::move(after);
+    }
   }
+  if (!o.shadow_fallback) return first;
+  // 2. The photo's own shadow compensation (ortho/shadows.h), on the photo
+  // of step 1 (relit there, or as it is).
+  AerialOptions lit = regions_only;
+  lit.shadows.enabled = true;
+  AerialRegistration second = RegisterPass(cv::Mat1f(), cv::Mat(), lit, &state, nullptr);
+  first.shadows = second.shadows;  // what the compensation found (no step: nothing relit)
+  if (!second.shadows.applied) return first;
   if (!second.registration.ok) {
-    first.shadows = second.shadows;
     first.registration.reason += "; with the cast shadows relit: " +
         WithoutNoRegistration(second.registration.reason);
     return first;
   }
   second.shadow_fallback_used = true;
+  second.cast_shadows = first.cast_shadows;
   second.segment_photo_ms += first.segment_photo_ms;
   second.outline_search_ms += first.outline_search_ms;
   return second;

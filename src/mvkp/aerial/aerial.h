@@ -10,6 +10,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "mvkp/aerial/cast_shadows.h"
 #include "mvkp/buildings/depth_regions.h"
 #include "mvkp/ortho/optical_regions.h"
 #include "mvkp/ortho/shadows.h"
@@ -43,6 +44,15 @@ struct AerialOptions {
   // registered a photo of other ground on a relit photo).
   ShadowOptions shadows;
   bool shadow_fallback = true;
+  // Shadows cast by the depth (cast_shadows.h; docs/aerial.md, "Shadows cast
+  // by the depth"): when neither pass above registers the photo, the sun is
+  // fitted at the outline search's best pose (refused, but where the depth's
+  // buildings are likely to be) and the shadows the depth casts there are
+  // relit; the region routes then try that photo (the depth's regions
+  // reused). Off when cast_shadow_fallback is false or no sun stands out.
+  bool cast_shadow_fallback = true;
+  int cast_shadow_candidates = 6;     // refused region sets tried as poses, at most (and the outline search's)
+  CastShadowOptions cast_shadows;
   DepthSegmentOptions depth;
   OpticalSegmentOptions optical;
   EdgeEvidenceOptions edge;
@@ -96,6 +106,8 @@ struct AerialRegistration {
   double segment_depth_ms = 0, segment_photo_ms = 0;
   ShadowCompensation shadows;          // what the shadow compensation found and did (working photo)
   bool shadow_fallback_used = false;   // the answer is the shadow fallback's (AerialOptions::shadow_fallback)
+  CastShadowFit cast_shadows;          // the depth's shadows, when that fallback ran (applied: a sun was fitted)
+  bool cast_shadow_fallback_used = false;  // the answer is that fallback's (AerialOptions::cast_shadow_fallback)
 };
 
 // Confidence of a region-method answer with `pairs` region pairs: the share

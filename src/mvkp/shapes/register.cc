@@ -1027,6 +1027,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     const double support = std::clamp((double(pairs.size()) - 1.0) / 5.0, 0.5, 1.0);
     const double max_rms = support * opt.max_rms_px * tol / opt.inlier_px;
     const Fitted shape_fit = f;
+    res.refused.push_back(f.T);  // removed again when this set is accepted
     const bool consistent = acceptable(Evaluation{pairs, {}, 0}, f.T, &ratio);
     const bool shape_ok =
         consistent && int(pairs.size()) >= opt.min_regions && ratio >= opt.min_inlier_ratio && f.rms <= max_rms;
@@ -1183,6 +1184,7 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
       }
     }
     res.ok = true;
+    res.refused.pop_back();
     res.photo_to_depth = f.T;
     res.model = ModelName(f.m);
     res.rms_px = f.rms;

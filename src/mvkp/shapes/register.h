@@ -163,6 +163,8 @@ struct Registration {
                                       //   transform maps the ground. Zero unless estimated.
   double relocated_px = 0;            // how far EdgeEvidence::Relocate moved the answer (mean over
                                       //   the outlines in view, depth px); 0 when it kept it
+  std::vector<cv::Matx33d> refused;   // the fitted poses of the consistent sets that failed the checks,
+                                      //   in the order tried (best first): hints for a later pass, never answers
 };
 
 // `evidence` (optional, not owned): the photo and all depth outlines (see
