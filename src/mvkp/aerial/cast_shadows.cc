@@ -101,6 +101,16 @@ cv::Mat1b Ring(const cv::Mat1b& shadows, const cv::Mat1b& occupied, double px) {
   return ring;
 }
 
+// log(grey + 4) of an 8-bit BGR image.
+cv::Mat1f LogGrey(const cv::Mat& bgr) {
+  cv::Mat grey;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  cv::Mat1f logy;
+  grey.convertTo(logy, CV_32F, 1.0, 4.0);
+  cv::log(logy, logy);
+  return logy;
+}
+
 // Mean log grey level over a mask, and the pixels counted.
 double MaskMean(const cv::Mat1f& v, const cv::Mat1b& m, int* count) {
   *count = cv::countNonZero(m);
@@ -156,11 +166,7 @@ bool Fit(const cv::Mat& photo, double f, const cv::Matx33d& photo_to_depth, cv::
   if (out.buildings < o.min_buildings)
     return refuse(cv::format("%d buildings in view cast shadows (%d needed)", out.buildings, o.min_buildings));
 
-  cv::Mat grey_small;
-  cv::cvtColor(small, grey_small, cv::COLOR_BGR2GRAY);
-  cv::Mat1f logy;
-  grey_small.convertTo(logy, CV_32F, 1.0, 4.0);
-  cv::log(logy, logy);
+  const cv::Mat1f logy = LogGrey(small);
   const cv::Mat1b occupied = Occupied(small.size(), to_fit, all, lean);
   const int min_pixels = std::max(20, int(0.002 * small.total()));
 
@@ -292,11 +298,7 @@ cv::Mat RelightCastShadows(const cv::Mat& photo, double f, const cv::Matx33d& ph
   cv::Mat1f lit_small;
   float global = 0;
   {
-    cv::Mat grey_small;
-    cv::cvtColor(small, grey_small, cv::COLOR_BGR2GRAY);
-    cv::Mat1f logy;
-    grey_small.convertTo(logy, CV_32F, 1.0, 4.0);
-    cv::log(logy, logy);
+    const cv::Mat1f logy = LogGrey(small);
     const cv::Mat1b occ_s = Occupied(small.size(), to_fit, all, lean);
     const cv::Mat1b ring = Ring(Shadows(small.size(), to_fit, casters, u, k, occ_s), occ_s, o.ring_px);
     const int win = 2 * std::max(4, int(std::lround(4 * o.ring_px + grow * g))) + 1;
