@@ -117,10 +117,6 @@ double MaskMean(const cv::Mat1f& v, const cv::Mat1b& m, int* count) {
   return *count ? cv::mean(v, m)[0] : 0.0;
 }
 
-}  // namespace
-
-namespace {
-
 // Steps 1-3 (see the header); `casters_out`, `all_out`: the buildings, for
 // the relighting. False with out->reason when no sun is fitted.
 bool Fit(const cv::Mat& photo, double f, const cv::Matx33d& photo_to_depth, cv::Point2d lean,

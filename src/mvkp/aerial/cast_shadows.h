@@ -13,6 +13,8 @@
 //     beyond them (ring_px wide, outside roofs too); the score is the
 //     darkness mean_R(log Y) - mean_S(log Y). Right sun: S dark, R lit.
 //     Too short: R still in shadow; too long, or another azimuth: S lit.
+//     Coarse to fine: every azimuth at every third length, then (when that
+//     comes near standing out) every length about the best azimuth.
 //  2. Refused (nothing relit) unless the best score reaches min_contrast and
 //     stands clear of the other azimuths (at the same k) by min_margin over
 //     the median other azimuth's score, at a length below the longest tried
@@ -27,7 +29,9 @@
 //     nothing changes when the mask would exceed max_fraction of the photo.
 //
 // Only the buildings the depth segmented cast shadows here (not trees), on
-// flat ground. Deterministic. Cost: ~20-60 ms at 1200 px.
+// flat ground. Deterministic. Cost: 10-100 ms a candidate pose for the fit
+// (most wrong poses stop after the coarse stage), 20-60 ms to relight a
+// 1200 px photo.
 #pragma once
 
 #include <string>
