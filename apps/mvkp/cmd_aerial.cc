@@ -146,6 +146,8 @@ struct RegisterArgs {
   bool shadows = AerialOptions{}.shadows.enabled;
   bool shadow_fallback = AerialOptions{}.shadow_fallback;
   bool cast_shadow_fallback = AerialOptions{}.cast_shadow_fallback;
+  double cast_shadow_confirm_margin = AerialOptions{}.cast_shadow_confirm_margin;
+  int outline_roof_veto_regions = AerialOptions{}.outline_roof_veto_regions;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
   double outline_relocate_confidence = AerialOptions{}.outline_relocate_confidence;
@@ -224,6 +226,8 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.shadows.enabled = a.shadows;
     ao.shadow_fallback = a.shadow_fallback;
     ao.cast_shadow_fallback = a.cast_shadow_fallback;
+    ao.cast_shadow_confirm_margin = a.cast_shadow_confirm_margin;
+    ao.outline_roof_veto_regions = a.outline_roof_veto_regions;
     ao.registration = a.opt;
     ao.edge = a.edge;
     ao.image_check = a.edge.min_contrast > 0;
@@ -516,6 +520,17 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_flag("!--no-cast-shadow-fallback", a->cast_shadow_fallback,
               "no last pass on the photo with the shadows the depth casts at the outline search's best pose "
               "relit (aerial/cast_shadows.h; answers only by region shapes)");
+  c->add_option("--cast-shadow-confirm-margin", a->cast_shadow_confirm_margin,
+                 "when the pass with the depth's shadows relit does not answer either, the pose whose shadows "
+                 "stood out by this margin answers if its outlines and roofs pass the outline search's checks "
+                 "on the relit photo (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0));
+  c->add_option("--outline-roof-veto-regions", a->outline_roof_veto_regions,
+                 "an outline-search answer whose roofs, scored over at least this many outlines, do not stand "
+                 "apart (--roof-veto) is refused however clear its edges (0: the region routes' rule)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
   c->callback([a, code] { *code = RunRegister(*a); });
 }
 

@@ -78,7 +78,7 @@ struct PyRegistration {
   Registration reg;
   std::vector<Contour> photo_regions, depth_regions;
   py::dict time_ms;
-  std::string method;       // register_aerial: "regions" | "single-pair" | "outlines" ("" when not registered)
+  std::string method;       // register_aerial: "regions" | "single-pair" | "outlines" | "cast-shadows" ("" when not registered)
   double confidence = 0;    // register_aerial: [0, 1] of the answer
   double photo_upscale = 1;  // register_aerial: the photo regions' segmentation size / the working size
   ShadowCompensation shadows;  // register_aerial: the cast-shadow compensation (ortho/shadows.h)
@@ -347,7 +347,8 @@ void BindAerial(py::module_& m) {
       [](py::handle depth, py::handle photo, int photo_max_side, int photo_min_side, py::handle depth_options,
          py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
          double photo_res_m, double depth_res_m, bool shadow_compensation, bool shadow_fallback,
-         bool cast_shadow_fallback, py::kwargs kw) {
+         bool cast_shadow_fallback, double cast_shadow_confirm_margin, int outline_roof_veto_regions,
+         py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -379,6 +380,8 @@ void BindAerial(py::module_& m) {
           ao.shadows.enabled = shadow_compensation;
           ao.shadow_fallback = shadow_fallback;
           ao.cast_shadow_fallback = cast_shadow_fallback;
+          ao.cast_shadow_confirm_margin = cast_shadow_confirm_margin;
+          ao.outline_roof_veto_regions = outline_roof_veto_regions;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
@@ -410,6 +413,8 @@ void BindAerial(py::module_& m) {
       py::arg("depth_res_m") = 0.0, py::arg("shadow_compensation") = AerialOptions{}.shadows.enabled,
       py::arg("shadow_fallback") = AerialOptions{}.shadow_fallback,
       py::arg("cast_shadow_fallback") = AerialOptions{}.cast_shadow_fallback,
+      py::arg("cast_shadow_confirm_margin") = AerialOptions{}.cast_shadow_confirm_margin,
+      py::arg("outline_roof_veto_regions") = AerialOptions{}.outline_roof_veto_regions,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
@@ -422,7 +427,11 @@ void BindAerial(py::module_& m) {
       "it is gives no registration, a second pass on it relit, answering by region shapes only (the result's "
       "shadows says what was done); cast_shadow_fallback (True): before that, the shadows the depth casts at a "
       "refused candidate pose, when a sun stands out there, are relit and the region routes try again (the "
-      "result's cast_shadows). "
+      "result's cast_shadows). cast_shadow_confirm_margin (0.3; 0 off): when that pass does not answer either, "
+      "the candidate whose shadows stood out by this margin answers if its outlines and roofs pass the outline "
+      "search's checks on the relit photo (method 'cast-shadows'). outline_roof_veto_regions (2; 0: the region "
+      "routes' rule): an outline-search answer whose roofs, scored over at least this many outlines, do not stand "
+      "apart is refused however clear its edges. "
       "The result's method and confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)

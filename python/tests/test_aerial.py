@@ -245,3 +245,28 @@ def test_cast_shadow_fallback(city):
     if d.cast_shadows["applied"]:
         assert d.cast_shadows["found"] and 0 <= d.cast_shadows["azimuth_deg"] < 360
         assert d.cast_shadows["margin"] >= 0.15 and 0 < d.cast_shadows["fraction"] < 0.5
+
+
+def test_cast_shadow_confirmation(city):
+    # the pose the depth's cast shadows single out answers when its outlines
+    # and roofs pass the checks on the relit photo (method "cast-shadows");
+    # 0 turns it off, a negative margin is refused
+    off = mvkp.register_aerial(city.depth, city.photo, cast_shadow_confirm_margin=0.0)
+    assert off.method != "cast-shadows"
+    d = mvkp.register_aerial(city.depth, city.photo)
+    if d.method == "cast-shadows":
+        assert d.ok and d.cast_shadows["fallback_answer"] and d.cast_shadows["margin"] >= 0.3
+        assert 0 < d.confidence <= 1
+    with pytest.raises(Exception):
+        mvkp.register_aerial(city.depth, city.photo, cast_shadow_confirm_margin=-1.0)
+
+
+def test_outline_roof_veto(city):
+    # an outline-search answer needs its roofs set apart whatever its edges;
+    # 0 gives the region routes' rule, a negative count is refused
+    d = mvkp.register_aerial(city.depth, city.photo, method="outlines")
+    e = mvkp.register_aerial(city.depth, city.photo, method="outlines", outline_roof_veto_regions=0)
+    if d.ok:
+        assert e.ok
+    with pytest.raises(Exception):
+        mvkp.register_aerial(city.depth, city.photo, outline_roof_veto_regions=-1)

@@ -52,6 +52,14 @@ struct AerialOptions {
   // reused). Off when cast_shadow_fallback is false or no sun stands out.
   bool cast_shadow_fallback = true;
   int cast_shadow_candidates = 6;     // refused region sets tried as poses, at most (and the outline search's)
+  // A candidate the shadows single out, confirmed by the edges: when the
+  // region routes do not answer on the relit photo either, the candidate
+  // whose sun stands out by at least this margin (CastShadowFit::margin) is
+  // refined and relocated on the relit photo's edges and answers when every
+  // check of the outline search's answers passes there and it moved at most
+  // cast_shadow_confirm_px (0 turns this off).
+  double cast_shadow_confirm_margin = 0.3;
+  double cast_shadow_confirm_px = 12;  // depth px
   CastShadowOptions cast_shadows;
   DepthSegmentOptions depth;
   OpticalSegmentOptions optical;
@@ -86,6 +94,16 @@ struct AerialOptions {
   // asks (contrast, min_on_edges); every later check still applies
   // (docs/aerial.md, "A clear winner relocated").
   double outline_relocate_confidence = 0.75;
+  // The outline search's answer rests on edges alone (no region shapes), so
+  // its roofs must stand apart (roof contrast >= EdgeEvidenceOptions::
+  // roof_veto) whenever they are scored over at least this many outlines,
+  // however clear its edges (the edges-only exemption, roof_veto_below, is
+  // for the region routes); 0: the region routes' rule. On seeds 122-132 the
+  // outline answers with roofs below 1.1 over 2 or more outlines were 2 of 2
+  // wrong (5.1 and 771.8 px; edges 2.41 and 2.52), the right ones 1.17 and
+  // above; over one outline a right answer scored 0.74 and a wrong one 0.72
+  // (docs/aerial.md, "The pose the shadows single out").
+  int outline_roof_veto_regions = 2;
   // Ground size of a pixel, metres (0: unknown). When both are known the
   // outline search looks only near their ratio of scales.
   double photo_res_m = 0, depth_res_m = 0;
@@ -98,7 +116,8 @@ struct AerialRegistration {
   std::vector<Contour> depth_regions;  // depth px
   std::vector<double> photo_region_confidence;  // per photo region (ortho's confidence)
   double photo_upscale = 1;            // the photo regions were segmented this many times the working size
-  std::string method;                  // which method gave `registration`: "regions" | "single-pair" | "outlines"
+  std::string method;                  // which method gave `registration`: "regions" | "single-pair" | "outlines" |
+                                       //   "cast-shadows" (AerialOptions::cast_shadow_confirm_margin)
   double confidence = 0;               // [0, 1] of the answer (see docs/aerial.md); 0 when !ok
   bool outline_search_ran = false;
   OutlineSearchResult outline;         // the outline search's own result, when it ran

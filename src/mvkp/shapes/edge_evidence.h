@@ -80,9 +80,11 @@ struct EdgeEvidenceOptions {
   double roof_shrink_px = 1.0;         // the inside, eroded by this (photo px)
   double roof_ring_px = 3.0;           // width of the ring around it (photo px)
   int min_roof_regions = 4;            // outlines in view needed for roofs to admit an answer
-  int min_roof_veto_regions = 3;       // ... and to refuse one (fewer: a right pose's roofs stand
-                                       //   apart over 3 outlines as over 4; seed 124's 533 px answer
-                                       //   scored 0.87 over 3, right answers 1.5-5.0)
+  int min_roof_veto_regions = 2;       // ... and to refuse one (fewer: a right pose's roofs stand
+                                       //   apart over 2-3 outlines as over 4; seed 124's 533 px answer
+                                       //   scored 0.87 over 3, seed 130's photo of other ground 0.41
+                                       //   over 2, right answers 1.5-5.0; one roof is no verdict: a
+                                       //   right answer scored 0.74 over 1)
   double roof_accept = 1.5;            // roof contrast that admits ...
   double min_contrast_with_roofs = 1.5;//   ... an edge contrast this low (< min_contrast)
   double roof_veto = 1.1;              // a roof contrast below this refuses an answer ...

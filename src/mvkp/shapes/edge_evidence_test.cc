@@ -469,7 +469,7 @@ TEST(EdgeEvidence, RoofsStandApartAtTheRightTransformOnly) {
 
 TEST(EdgeEvidence, RoofsDecideOnlyWhenScoredOverEnoughOutlines) {
   const Scene s = MakeScene(1);
-  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);  // defaults: edges 1.8; roofs over 4 outlines: 1.5 admits 1.5; over 3: veto 1.1
+  const EdgeEvidence ev(s.photo, 1.0, s.depth_outlines);  // defaults: edges 1.8; roofs over 4 outlines: 1.5 admits 1.5; over 2: veto 1.1
   EdgeScore e;
   e.enough = true;
   e.contrast = 1.6;
@@ -492,7 +492,9 @@ TEST(EdgeEvidence, RoofsDecideOnlyWhenScoredOverEnoughOutlines) {
   e.roof_regions = 3;
   EXPECT_FALSE(ev.Accepts(e));  // 3 outlines may refuse (min_roof_veto_regions), not admit
   e.roof_regions = 2;
-  EXPECT_TRUE(ev.Accepts(e));  // 2 outlines: no roof verdict either way
+  EXPECT_FALSE(ev.Accepts(e));  // ... and 2 (seed 130's photo of other ground: roofs 0.41 over 2)
+  e.roof_regions = 1;
+  EXPECT_TRUE(ev.Accepts(e));  // 1 outline: no roof verdict either way
   e.roof_regions = 6, e.contrast = 3.0;
   EXPECT_TRUE(ev.Accepts(e));  // decisive edges stand on their own
   e.enough = false, e.roof_regions = 6, e.roof_contrast = 3.0;
