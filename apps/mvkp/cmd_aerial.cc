@@ -523,7 +523,7 @@ void RegisterRegister(CLI::App& app, int* code) {
   c->add_option("--cast-shadow-confirm-margin", a->cast_shadow_confirm_margin,
                  "when the pass with the depth's shadows relit does not answer either, the pose whose shadows "
                  "stood out by this margin answers if its outlines and roofs pass the outline search's checks "
-                 "on the relit photo (0: off)")
+                 "on the relit photo (--method auto only; 0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 10.0));
   c->add_option("--outline-roof-veto-regions", a->outline_roof_veto_regions,

@@ -429,7 +429,7 @@ void BindAerial(py::module_& m) {
       "refused candidate pose, when a sun stands out there, are relit and the region routes try again (the "
       "result's cast_shadows). cast_shadow_confirm_margin (0.3; 0 off): when that pass does not answer either, "
       "the candidate whose shadows stood out by this margin answers if its outlines and roofs pass the outline "
-      "search's checks on the relit photo (method 'cast-shadows'). outline_roof_veto_regions (2; 0: the region "
+      "search's checks on the relit photo (method 'cast-shadows'; method='auto' only). outline_roof_veto_regions (2; 0: the region "
       "routes' rule): an outline-search answer whose roofs, scored over at least this many outlines, do not stand "
       "apart is refused however clear its edges. "
       "The result's method and confidence say which method answered and how surely.");

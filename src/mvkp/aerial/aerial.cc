@@ -442,7 +442,9 @@ AerialRegistration RegisterAerial(cv::Mat1f depth, cv::Mat photo, const AerialOp
     }
     fit.ms += fit_ms;
     first.cast_shadows = fit;
-    if (fit.applied && o.cast_shadow_confirm_margin > 0 && fit.margin >= o.cast_shadow_confirm_margin)
+    // (in auto only: `regions` asks for answers by region shapes)
+    if (fit.applied && o.method == AerialOptions::Method::kAuto && o.cast_shadow_confirm_margin > 0 &&
+        fit.margin >= o.cast_shadow_confirm_margin)
       state.hint = cands[best];
     if (fit.applied) {
       PassState after;

@@ -52,7 +52,8 @@ struct AerialOptions {
   // reused). Off when cast_shadow_fallback is false or no sun stands out.
   bool cast_shadow_fallback = true;
   int cast_shadow_candidates = 6;     // refused region sets tried as poses, at most (and the outline search's)
-  // A candidate the shadows single out, confirmed by the edges: when the
+  // A candidate the shadows single out, confirmed by the edges (method
+  // kAuto only; kRegions answers by region shapes alone): when the
   // region routes do not answer on the relit photo either, the candidate
   // whose sun stands out by at least this margin (CastShadowFit::margin) is
   // refined and relocated on the relit photo's edges and answers when every
