@@ -53,7 +53,7 @@ SAN_TEST_ENV = ASAN_OPTIONS=$(SAN_ASAN):allow_user_segv_handler=1 $(SAN_UBSAN_LS
 # whose code the other tests of their components run too; and
 # Aerial.ARelocationTheEdgesClearlyPreferIsKept (two 1000 x 1000 registrations;
 # Aerial.AnAnswerTheEvidenceDoesNotDetermineIsRefused runs the same relocation).
-SAN_EXCLUDE ?= ^(api_docs|AugmentTiming\.SiftImage800px|Register\.SyntheticCities|Quality\.StableUnderBrightnessAndSizeButNotContrast|MatcherEnvelope\.WeakSteepFitsAlsoTryTheSimulatedTilts|Quality\.SmallLogoOnPlainCanvasIsConcentrated|Aerial\.ARelocationTheEdgesClearlyPreferIsKept|Aerial\.CastShadowsAreRelit|Aerial\.TheDepthsShadowsRelitRegisterAShadowedSuburb|Aerial\.APoseTheCastShadowsSingleOutIsConfirmedByItsRoofs|Aerial\.AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused)$$
+SAN_EXCLUDE ?= ^(api_docs|AugmentTiming\.SiftImage800px|Register\.SyntheticCities|Quality\.StableUnderBrightnessAndSizeButNotContrast|MatcherEnvelope\.WeakSteepFitsAlsoTryTheSimulatedTilts|Quality\.SmallLogoOnPlainCanvasIsConcentrated|Aerial\.ARelocationTheEdgesClearlyPreferIsKept|Aerial\.CastShadowsAreRelit|Aerial\.TheDepthsShadowsRelitRegisterAShadowedSuburb|Aerial\.APoseTheCastShadowsSingleOutIsConfirmedByItsRoofs|Aerial\.AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused|Aerial\.SmallTilesRegisterByCompleteOutlinesAndTrees)$$
 FUZZ_SECONDS ?= 300
 
 $(SAN_BUILD)/CMakeCache.txt:

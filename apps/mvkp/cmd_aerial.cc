@@ -150,6 +150,9 @@ struct RegisterArgs {
   int outline_roof_veto_regions = AerialOptions{}.outline_roof_veto_regions;
   int outline_max_regions = AerialOptions{}.auto_outline_max_regions;
   int outline_max_side = AerialOptions{}.outline_max_side;
+  bool no_outline_objects = false;
+  double outline_object_weight = OutlineSearchOptions{}.object_weight;
+  double outline_completeness = OutlineSearchOptions{}.completeness_power;
   double outline_relocate_confidence = AerialOptions{}.outline_relocate_confidence;
   RegistrationOptions opt;
   EdgeEvidenceOptions edge;
@@ -239,6 +242,9 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.outline.min_confidence = a.min_confidence;
     ao.auto_outline_max_regions = a.outline_max_regions;
     ao.outline_max_side = a.outline_max_side;
+    ao.outline_objects = !a.no_outline_objects;
+    ao.outline.object_weight = a.outline_object_weight;
+    ao.outline.completeness_power = a.outline_completeness;
     ao.outline_relocate_confidence = a.outline_relocate_confidence;
     ao.photo_res_m = img.res_m;
     ao.depth_res_m = d.res_m;
@@ -304,7 +310,7 @@ Json RegisterCompute(RegisterArgs& a) {
     if (ar.outline_search_ran) {
       const OutlineSearchResult& os = ar.outline;
       out["outline_search"] = {{"ok", os.ok},           {"confidence", os.confidence}, {"score", os.score},
-                               {"runner_up", os.runner_up}, {"coverage", os.coverage},   {"poses", os.poses},
+                               {"runner_up", os.runner_up}, {"coverage", os.coverage}, {"completeness", os.completeness}, {"poses", os.poses},
                                {"edge_contrast", os.edge.enough ? Json(os.edge.contrast) : Json(nullptr)},
                                {"ambiguity_px", os.ambiguity_px},
                                {"time_ms", os.ms},      {"reason", os.reason}};
@@ -429,6 +435,17 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "outline search: the side of the photo copy it searches, px (0: the working photo; else >= 64)")
       ->capture_default_str()
       ->check(CLI::Range(0, 20000));
+  c->add_flag("--no-outline-objects", a->no_outline_objects,
+              "outline search: score the building outlines only, not those of trees, hedges and sheds");
+  c->add_option("--outline-object-weight", a->outline_object_weight,
+                "outline search: the weight of a tree's, hedge's or shed's outline sample against a building's")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  c->add_option("--outline-completeness", a->outline_completeness,
+                "outline search: a pose's score is weighted by the share of its building outlines' arcs on edges, "
+                "to this power (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 4.0));
   c->add_option("--outline-relocate-confidence", a->outline_relocate_confidence,
                 "outline search: its refused best pose is relocated onto the edges and judged again when its "
                 "confidence reaches this (0: off)")

@@ -348,7 +348,7 @@ void BindAerial(py::module_& m) {
          py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
          double photo_res_m, double depth_res_m, bool shadow_compensation, bool shadow_fallback,
          bool cast_shadow_fallback, double cast_shadow_confirm_margin, int outline_roof_veto_regions,
-         py::kwargs kw) {
+         bool outline_objects, double outline_completeness, py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -382,6 +382,8 @@ void BindAerial(py::module_& m) {
           ao.cast_shadow_fallback = cast_shadow_fallback;
           ao.cast_shadow_confirm_margin = cast_shadow_confirm_margin;
           ao.outline_roof_veto_regions = outline_roof_veto_regions;
+          ao.outline_objects = outline_objects;
+          ao.outline.completeness_power = outline_completeness;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
@@ -415,6 +417,8 @@ void BindAerial(py::module_& m) {
       py::arg("cast_shadow_fallback") = AerialOptions{}.cast_shadow_fallback,
       py::arg("cast_shadow_confirm_margin") = AerialOptions{}.cast_shadow_confirm_margin,
       py::arg("outline_roof_veto_regions") = AerialOptions{}.outline_roof_veto_regions,
+      py::arg("outline_objects") = AerialOptions{}.outline_objects,
+      py::arg("outline_completeness") = OutlineSearchOptions{}.completeness_power,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
@@ -431,7 +435,10 @@ void BindAerial(py::module_& m) {
       "the candidate whose shadows stood out by this margin answers if its outlines and roofs pass the outline "
       "search's checks on the relit photo (method 'cast-shadows'; method='auto' only). outline_roof_veto_regions (2; 0: the region "
       "routes' rule): an outline-search answer whose roofs, scored over at least this many outlines, do not stand "
-      "apart is refused however clear its edges. "
+      "apart is refused however clear its edges. outline_objects (True): the outline search also scores the "
+      "outlines of trees, hedges and sheds the depth shows (never counted as outlines in view); "
+      "outline_completeness (1; 0 off): its poses' scores are weighted by the share of their building outlines' "
+      "arcs on edges, to this power. "
       "The result's method and confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)

@@ -270,3 +270,19 @@ def test_outline_roof_veto(city):
         assert e.ok
     with pytest.raises(Exception):
         mvkp.register_aerial(city.depth, city.photo, outline_roof_veto_regions=-1)
+
+
+def test_outline_objects_and_completeness(city):
+    # the outline search's trees and hedges, and its completeness weight, can
+    # be turned off; out-of-range values are refused
+    d = mvkp.register_aerial(city.depth, city.photo, method="outlines")
+    bare = mvkp.register_aerial(city.depth, city.photo, method="outlines", outline_objects=False,
+                                outline_completeness=0.0)
+    for r in (d, bare):
+        assert r.method in ("outlines", "") or not r.ok
+        if r.ok:
+            assert r.confidence >= 0.5
+    with pytest.raises(Exception):
+        mvkp.register_aerial(city.depth, city.photo, outline_completeness=-1.0)
+    with pytest.raises(Exception):
+        mvkp.register_aerial(city.depth, city.photo, outline_completeness=5.0)

@@ -28,6 +28,7 @@ void AerialOptions::Check() const {
           ErrorCode::kInvalidArgument,
           "AerialOptions: large_tile_regions >= 0, large_tile_template_radius >= 8, large_tile_min_on_edges in [0, 1]");
   depth.Check();
+  objects.Check();
   optical.Check();
   shadows.Check();
   cast_shadows.Check();
@@ -71,6 +72,7 @@ struct PassState {
   cv::Mat working;
   double f = 1;
   std::vector<BuildingRegion> dregions;
+  std::vector<Contour> objects;  // ObjectOutlines of the depth
   double segment_depth_ms = 0;
   // A pose the depth's cast shadows single out (AerialOptions::
   // cast_shadow_confirm_margin), for the pass on the photo they relit.
@@ -163,10 +165,20 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
   double photo_ms = tp.ElapsedMs();
 
   Timer td;
-  const std::vector<BuildingRegion> dregions = reuse ? std::move(reuse->dregions) : SegmentDepth(depth, o.depth);
+  std::vector<BuildingRegion> dregions;
+  std::vector<Contour> objects;
+  if (reuse) {
+    dregions = std::move(reuse->dregions), objects = std::move(reuse->objects);
+  } else {
+    cv::Mat1f above;
+    const bool want_objects = o.outline_objects && o.method != AerialOptions::Method::kRegions;
+    dregions = SegmentDepth(depth, o.depth, nullptr, want_objects ? &above : nullptr);
+    if (want_objects)
+      for (auto& c : ObjectOutlines(above, dregions, o.objects)) objects.emplace_back(c.begin(), c.end());
+  }
   depth.release();
   out.segment_depth_ms = reuse ? reuse->segment_depth_ms : td.ElapsedMs();
-  if (keep) keep->dregions = dregions, keep->segment_depth_ms = out.segment_depth_ms;
+  if (keep) keep->dregions = dregions, keep->objects = objects, keep->segment_depth_ms = out.segment_depth_ms;
   for (const auto& r : dregions) out.depth_regions.emplace_back(r.contour.begin(), r.contour.end());
 
   tp.Restart();
@@ -269,9 +281,12 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
   OutlineSearchOptions so = o.outline;
   // Large tiles (beyond the depths the search was built on): a coarser
   // template and a clearer majority of outlines on edges (aerial.h).
-  if (o.large_tile_regions > 0 && int(out.depth_regions.size()) > o.large_tile_regions) {
+  // Trees, hedges and completeness on small tiles only (AerialOptions::outline_objects).
+  const bool large_tile = o.large_tile_regions > 0 && int(out.depth_regions.size()) > o.large_tile_regions;
+  if (large_tile) {
     so.max_template_radius = std::min(so.max_template_radius, o.large_tile_template_radius);
     so.min_on_edges = std::max(so.min_on_edges, o.large_tile_min_on_edges);
+    so.completeness_power = 0;
   }
   if (o.photo_res_m > 0 && o.depth_res_m > 0 && so.scale_hint <= 0) so.scale_hint = o.photo_res_m / o.depth_res_m;
   so.perspective = o.registration.model == RegistrationOptions::Model::kAuto ||
@@ -286,7 +301,8 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
     grey = std::move(small);
     f *= g;
   }
-  out.outline = SearchOutlines(grey, f, out.depth_regions, so, evidence ? &*evidence : nullptr);
+  out.outline = SearchOutlines(grey, f, out.depth_regions, so, evidence ? &*evidence : nullptr,
+                               objects.empty() || large_tile ? nullptr : &objects);
   grey.release();
   // A clear winner not yet on edges (AerialOptions::outline_relocate_confidence):
   // on large tiles the search finds the right basin while its similarity,

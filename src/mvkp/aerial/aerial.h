@@ -89,6 +89,19 @@ struct AerialOptions {
                                       //   memory (~45 MB at 1200 px); the image check that refines and
                                       //   judges its answer keeps the working photo
   OutlineSearchOptions outline;
+  // On tiles of at most large_tile_regions buildings the outline search
+  // also scores the outlines of what else stands above the ground (trees,
+  // hedges, sheds: ObjectOutlines, depth_regions.h; at
+  // OutlineSearchOptions::object_weight); they never count as outlines in
+  // view nor in the acceptance. A tile of 3-6 buildings shows 2-3 outlines
+  // in a photo; a large tile shows tens, and its hundreds of tree crowns
+  // drew the search to wrong scales (issue 21, docs/aerial.md). Likewise
+  // the search's completeness weight (OutlineSearchOptions::
+  // completeness_power) applies to small tiles only: on large tiles it
+  // changed no answer but one, a clear winner relocated 9.5 px off, and the
+  // relocation's confidence bound was measured on unweighted scores.
+  bool outline_objects = true;
+  ObjectOutlineOptions objects;
   // The outline search's best pose, refused but a clear winner (its
   // confidence >= this; 0: off), is relocated (EdgeEvidence::Relocate) and
   // becomes its answer when the outlines then lie on edges as the search

@@ -388,7 +388,8 @@ class Segmenter {
 
 }  // namespace
 
-std::vector<BuildingRegion> SegmentDepth(const cv::Mat1f& depth, const DepthSegmentOptions& options, cv::Mat1i* labels) {
+std::vector<BuildingRegion> SegmentDepth(const cv::Mat1f& depth, const DepthSegmentOptions& options, cv::Mat1i* labels,
+                                         cv::Mat1f* above_ground) {
   options.Check();
   Require(!depth.empty(), ErrorCode::kBadImage, "depth segmentation: empty depth image");
   Require(depth.total() < (size_t{1} << 30), ErrorCode::kBadImage,
@@ -418,6 +419,7 @@ std::vector<BuildingRegion> SegmentDepth(const cv::Mat1f& depth, const DepthSegm
     cv::subtract(h, ground, h);  // NaN stays NaN
   }
   std::vector<BuildingRegion> regions = Segmenter(h, options).Run();
+  if (above_ground) *above_ground = h;
   if (labels) {
     *labels = cv::Mat1i::zeros(depth.size());
     for (size_t i = 0; i < regions.size(); ++i)
@@ -425,6 +427,45 @@ std::vector<BuildingRegion> SegmentDepth(const cv::Mat1f& depth, const DepthSegm
                        cv::FILLED, cv::LINE_8);
   }
   return regions;
+}
+
+void ObjectOutlineOptions::Check() const {
+  Require(std::isfinite(min_height) && min_height > 0 && min_area >= 1 && building_margin >= 0, ErrorCode::kInvalidArgument,
+          "ObjectOutlineOptions: need min_height > 0, min_area >= 1, building_margin >= 0");
+}
+
+std::vector<std::vector<cv::Point>> ObjectOutlines(const cv::Mat1f& above_ground, const std::vector<BuildingRegion>& regions,
+                                                   const ObjectOutlineOptions& o) {
+  o.Check();
+  std::vector<std::vector<cv::Point>> out;
+  if (above_ground.empty()) return out;
+  cv::Mat1b mask(above_ground.size());
+  for (int y = 0; y < above_ground.rows; ++y) {
+    const float* h = above_ground[y];
+    uint8_t* m = mask[y];
+    for (int x = 0; x < above_ground.cols; ++x) m[x] = h[x] >= o.min_height ? 255 : 0;  // false for NaN
+  }
+  cv::Mat1b built = cv::Mat1b::zeros(above_ground.size());
+  for (const auto& r : regions) cv::drawContours(built, std::vector<std::vector<cv::Point>>{r.contour}, 0, cv::Scalar(255), cv::FILLED);
+  if (o.building_margin > 0)
+    cv::dilate(built, built, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * o.building_margin + 1, 2 * o.building_margin + 1)));
+  mask.setTo(0, built);
+  cv::Mat1i lab;
+  cv::Mat stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, lab, stats, centroids, 8, CV_32S);
+  for (int i = 1; i < n; ++i) {
+    if (stats.at<int>(i, cv::CC_STAT_AREA) < o.min_area) continue;
+    const cv::Rect b(stats.at<int>(i, cv::CC_STAT_LEFT) - 1, stats.at<int>(i, cv::CC_STAT_TOP) - 1,
+                     stats.at<int>(i, cv::CC_STAT_WIDTH) + 2, stats.at<int>(i, cv::CC_STAT_HEIGHT) + 2);
+    const cv::Rect in = b & cv::Rect(0, 0, lab.cols, lab.rows);
+    cv::Mat1b one = cv::Mat1b::zeros(b.size());
+    cv::Mat1b(lab(in) == i).copyTo(one(in - b.tl()));
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(one, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, b.tl());
+    for (auto& c : contours)
+      if (c.size() >= 6) out.push_back(std::move(c));
+  }
+  return out;
 }
 
 cv::Mat DrawRegions(const cv::Mat1f& depth, const std::vector<BuildingRegion>& regions) {

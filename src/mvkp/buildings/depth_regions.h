@@ -115,7 +115,25 @@ struct DepthSegmentOptions {
 // Error(kInvalidArgument) for bad options. An image with nothing standing above
 // the water level (flat, bare ground) gives no regions.
 std::vector<BuildingRegion> SegmentDepth(const cv::Mat1f& depth, const DepthSegmentOptions& options = {},
-                                         cv::Mat1i* labels = nullptr);
+                                         cv::Mat1i* labels = nullptr, cv::Mat1f* above_ground = nullptr);
+
+// What stands above the ground besides the buildings: trees, hedges, sheds,
+// walls. Their outlines are evidence a photo shows too (issue 21: a tile of 3-6
+// buildings puts 2-3 outlines in a photo, too few to tell the pose from the
+// roads and markings that line up with them by chance).
+struct ObjectOutlineOptions {
+  float min_height = 1.0f;   // m above the local ground
+  double min_area = 12;      // px; smaller blobs are cars, noise or single returns
+  int building_margin = 2;   // px around every building region left out (its walls, its lean)
+  void Check() const;        // throws Error(kInvalidArgument)
+};
+
+// Outer contours (depth px) of the connected areas of `above_ground` (metres
+// above the local ground, NaN = no data: SegmentDepth's) standing at least
+// min_height, outside the `regions` (dilated by building_margin), of at least
+// min_area px.
+std::vector<std::vector<cv::Point>> ObjectOutlines(const cv::Mat1f& above_ground, const std::vector<BuildingRegion>& regions,
+                                                   const ObjectOutlineOptions& options = {});
 
 // Colour drawing for `mvkp segment depth --draw`: the depth as grey levels
 // (no data dark red), each region tinted in its own colour with its contour.

@@ -453,6 +453,52 @@ TEST(SegmentDepth, ThousandSquareIsFast) {
   EXPECT_GE(sc.found_pct(), 85.0);
 }
 
+// What else stands above the ground (ObjectOutlines): a hedge one pixel
+// wide and a tree are outlined; the building (and its walls, within the
+// margin), a car-sized blob and low kerbs are not.
+TEST(ObjectOutlines, HedgesAndTreesButNotBuildingsOrCars) {
+  cv::Mat1f d(200, 200, 50.f);
+  cv::RNG rng(11);
+  for (int y = 0; y < d.rows; ++y)
+    for (int x = 0; x < d.cols; ++x) d(y, x) += static_cast<float>(rng.gaussian(0.05));
+  const cv::Rect house(40, 40, 30, 24);
+  d(house).setTo(57.f);
+  for (int x = 100; x < 170; ++x) d(30, x) = 51.6f;  // a hedge, 1 px wide, 1.6 m
+  for (int y = 110; y < 150; ++y)                     // a tree crown, 6-10 m with returns inside it
+    for (int x = 110; x < 150; ++x)
+      if ((x - 130) * (x - 130) + (y - 130) * (y - 130) < 15 * 15) d(y, x) = 58.f + static_cast<float>(rng.gaussian(1.0));
+  d(cv::Rect(20, 160, 3, 2)).setTo(51.5f);  // a car: 6 px
+  d(cv::Rect(20, 180, 60, 2)).setTo(50.4f);  // a kerb, 0.4 m
+  d(cv::Rect(150, 170, 10, 10)).setTo(kNaN);
+  cv::Mat1f above;
+  const std::vector<BuildingRegion> regions = SegmentDepth(d, {}, nullptr, &above);
+  ASSERT_EQ(regions.size(), 1u);
+  ASSERT_EQ(above.size(), d.size());
+  EXPECT_NEAR(above(house.y + 10, house.x + 10), 7.f, 0.5f);
+  EXPECT_TRUE(std::isnan(above(175, 155)));
+  const std::vector<std::vector<cv::Point>> objects = ObjectOutlines(above, regions);
+  ASSERT_EQ(objects.size(), 2u);
+  int hedge = 0, tree = 0;
+  for (const auto& c : objects) {
+    const cv::Rect b = cv::boundingRect(c);
+    EXPECT_EQ((b & house).area(), 0) << b;
+    if (b.y >= 29 && b.y + b.height <= 32 && b.width >= 65) ++hedge;
+    if ((b & cv::Rect(110, 110, 40, 40)).area() >= 0.8 * b.area() && b.width >= 25) ++tree;
+  }
+  EXPECT_EQ(hedge, 1);
+  EXPECT_EQ(tree, 1);
+  ObjectOutlineOptions low;  // the kerb stands 0.4 m
+  low.min_height = 0.3f;
+  EXPECT_EQ(ObjectOutlines(above, regions, low).size(), 3u);
+  EXPECT_TRUE(ObjectOutlines(cv::Mat1f(), regions).empty());
+  ObjectOutlineOptions bad;
+  bad.min_height = 0;
+  EXPECT_THROW(ObjectOutlines(above, regions, bad), Error);
+  bad = ObjectOutlineOptions{};
+  bad.building_margin = -1;
+  EXPECT_THROW(ObjectOutlines(above, regions, bad), Error);
+}
+
 TEST(SegmentDepth, MontpellierTile) {
   const std::string path = std::string(MVKP_SOURCE_DIR) + "/../shared/data/aerial/montpellier/ndsm_50cm.tif";
   cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);

@@ -29,6 +29,8 @@ void OutlineSearchOptions::Check() const {
   need(coarse_candidates >= 2 && distinct_px > 0, "OutlineSearchOptions: coarse_candidates >= 2, distinct_px > 0");
   need(min_outlines >= 1, "OutlineSearchOptions.min_outlines must be >= 1");
   need(min_confidence >= 0 && min_confidence <= 1, "OutlineSearchOptions.min_confidence in [0, 1]");
+  need(object_weight >= 0 && object_weight <= 1 && completeness_power >= 0 && completeness_power <= 4,
+       "OutlineSearchOptions: object_weight in [0, 1], completeness_power in [0, 4]");
 }
 
 namespace {
@@ -39,7 +41,8 @@ struct Sample {
   cv::Point2f q;   // depth px
   cv::Point2f n;   // unit normal
   float psi = 0;   // normal angle, rad
-  int b = 0;       // outline index
+  int b = 0;       // outline index (-1: an object, not a building)
+  float w = 1;     // weight in the score
 };
 
 // Outline samples every `step` px of arc length, normals from the neighbours.
@@ -164,7 +167,8 @@ double PoseDistance(const cv::Matx33d& A, const cv::Matx33d& B, const std::vecto
 }  // namespace
 
 OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::vector<Contour>& outlines,
-                                   const OutlineSearchOptions& opt, const EdgeEvidence* evidence) {
+                                   const OutlineSearchOptions& opt, const EdgeEvidence* evidence,
+                                   const std::vector<Contour>* objects) {
   const OutlineSearchOptions& o = opt;
   o.Check();
   Require(!photo.empty() && photo.depth() == CV_8U && (photo.channels() == 1 || photo.channels() == 3),
@@ -180,8 +184,14 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   };
 
   // ---- depth side: outline samples, building size, extent
-  const std::vector<Sample> samples = SampleOutlines(outlines, 1.0);
+  std::vector<Sample> samples = SampleOutlines(outlines, 1.0);
   if (int(samples.size()) < o.min_samples) return fail("too few building outlines in the depth image");
+  const size_t building_samples = samples.size();  // the buildings' samples come first
+  if (objects && o.object_weight > 0) {
+    std::vector<Sample> more = SampleOutlines(*objects, 1.0);
+    for (auto& m : more) m.b = -1, m.w = float(o.object_weight);  // never counted as an outline in view
+    samples.insert(samples.end(), more.begin(), more.end());
+  }
   std::vector<double> sides;
   for (const Contour& c : outlines)
     if (c.size() >= 3) sides.push_back(std::sqrt(std::abs(SignedArea(c))));
@@ -274,13 +284,13 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
       const double yx = ca * dx - sa * dy + Rt, yy = sa * dx + ca * dy + Rt;
       const int ix = int(std::floor(yx)), iy = int(std::floor(yy));
       const float fx = float(yx - ix), fy = float(yy - iy);
-      const cv::Vec2f v(float(std::cos(2 * (s.psi + rotations[r]))), float(std::sin(2 * (s.psi + rotations[r]))));
+      const cv::Vec2f v = s.w * cv::Vec2f(float(std::cos(2 * (s.psi + rotations[r]))), float(std::sin(2 * (s.psi + rotations[r]))));
       const float wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
       const int xs[4] = {ix, ix + 1, ix, ix + 1}, ys[4] = {iy, iy, iy + 1, iy + 1};
       for (int k = 0; k < 4; ++k) {
         if (xs[k] < 0 || ys[k] < 0 || xs[k] >= Wt || ys[k] >= Wt) continue;
         T.at<cv::Vec2f>(ys[k], xs[k]) += v * wts[k];
-        W.at<float>(ys[k], xs[k]) += wts[k];
+        W.at<float>(ys[k], xs[k]) += wts[k] * s.w * s.w;  // the null variance: sum of w^2
       }
     }
     tmpl[r] = T;
@@ -402,11 +412,13 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   };
 
   // ---- fine scoring at photo resolution
-  std::vector<Sample> fs = samples;  // at most ~6000 samples
-  if (fs.size() > 6000) {
-    std::vector<Sample> kept;
-    for (size_t i = 0; i < 6000; ++i) kept.push_back(fs[i * fs.size() / 6000]);
-    fs.swap(kept);
+  // at most ~6000 samples, of which objects at most 2000 (evenly thinned)
+  std::vector<Sample> fs;
+  {
+    const size_t nb = building_samples, no = samples.size() - nb;
+    const size_t keep_o = std::min<size_t>(no, 2000), keep_b = std::min(nb, 6000 - keep_o);
+    for (size_t i = 0; i < keep_b; ++i) fs.push_back(samples[i * nb / keep_b]);
+    for (size_t i = 0; i < keep_o; ++i) fs.push_back(samples[nb + i * no / keep_o]);
   }
   std::map<std::pair<int, int>, Field> fields;  // per pyramid level and blur
   auto field_for = [&](double s, bool wide = false) -> const Field& {
@@ -430,28 +442,35 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     }
     return it->second;
   };
+  // One sample's score m cos 2(phi - psi) at the pose whose inverse is D
+  // (false when it falls outside the field).
+  auto sample_score = [&](const Field& f, const cv::Matx33d& D, const Sample& s, double* score) {
+    const cv::Point2d p = Map(D, s.q), pn = Map(D, cv::Point2d(s.q) + cv::Point2d(s.n));
+    // bounds on the float coordinates At2 gets: a double just below w - 1
+    // rounds to w - 1 as a float, and its bilinear cell reads past the field
+    const float ux = float((p.x * ps + 0.5) * f.k - 0.5), uy = float((p.y * ps + 0.5) * f.k - 0.5);
+    if (!(ux >= 0 && uy >= 0 && ux < float(f.P.cols - 1) && uy < float(f.P.rows - 1))) return false;
+    // the mapped normal's doubled angle 2a without trigonometry:
+    // cos 2a = (x^2 - y^2) / r^2, sin 2a = 2xy / r^2
+    const double nx = pn.x - p.x, ny = pn.y - p.y, r2 = nx * nx + ny * ny;
+    if (!(r2 > 0)) return false;
+    const cv::Vec2f v = At2(f.P, ux, uy);
+    *score = (v[0] * (nx * nx - ny * ny) + v[1] * 2 * nx * ny) / r2;
+    return true;
+  };
   auto fine_score = [&](const cv::Matx33d& T, const Field& f, double* coverage) {
     const cv::Matx33d D = T.inv();
-    const float w = float(f.P.cols), h = float(f.P.rows);
-    double sum = 0;
+    double sum = 0, w2 = 0, v = 0;
     int n = 0;
     for (const auto& s : fs) {
-      const cv::Point2d p = Map(D, s.q), pn = Map(D, cv::Point2d(s.q) + cv::Point2d(s.n));
-      // bounds on the float coordinates At2 gets: a double just below w - 1
-      // rounds to w - 1 as a float, and its bilinear cell reads past the field
-      const float ux = float((p.x * ps + 0.5) * f.k - 0.5), uy = float((p.y * ps + 0.5) * f.k - 0.5);
-      if (!(ux >= 0 && uy >= 0 && ux < w - 1 && uy < h - 1)) continue;
-      // the mapped normal's doubled angle 2a without trigonometry:
-      // cos 2a = (x^2 - y^2) / r^2, sin 2a = 2xy / r^2
-      const double nx = pn.x - p.x, ny = pn.y - p.y, r2 = nx * nx + ny * ny;
-      if (!(r2 > 0)) continue;
-      const cv::Vec2f v = At2(f.P, ux, uy);
-      sum += (v[0] * (nx * nx - ny * ny) + v[1] * 2 * nx * ny) / r2;
+      if (!sample_score(f, D, s, &v)) continue;
+      sum += s.w * v;
+      w2 += double(s.w) * s.w;
       ++n;
     }
     if (coverage) *coverage = double(n) / double(fs.size());
     const int need = std::max(o.min_samples, int(std::ceil(o.min_overlap * double(fs.size()))));
-    return n >= need ? sum / std::sqrt(f.v * n) : -1e18;
+    return n >= need ? sum / std::sqrt(f.v * w2) : -1e18;
   };
   auto refine = [&](cv::Matx33d T, double s, double start_px) {
    double best = 0;
@@ -483,6 +502,30 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     return Pose{T, best, 0};
   };
 
+  // Completeness (OutlineSearchOptions::completeness_power): the share of
+  // the building outlines' arcs (8 consecutive samples of one outline, all
+  // in view) whose summed score is positive.
+  auto completeness = [&](const cv::Matx33d& T) {
+    const double sc = std::sqrt(std::abs(T(0, 0) * T(1, 1) - T(0, 1) * T(1, 0)));
+    const Field& f = field_for(sc);
+    const cv::Matx33d D = T.inv();
+    int good = 0, all = 0;
+    for (size_t i = 0; i < building_samples;) {
+      const int b = samples[i].b;
+      double sum = 0, v = 0;
+      int n = 0;
+      size_t j = i;
+      for (; j < building_samples && j < i + 8 && samples[j].b == b; ++j)
+        if (sample_score(f, D, samples[j], &v)) sum += v, ++n;
+      if (n == 8) ++all, good += sum > 0;
+      i = j;
+    }
+    return all ? double(good) / all : 0.0;
+  };
+  auto weigh = [&](Pose p) {
+    if (o.completeness_power > 0 && p.z > 0) p.z *= std::pow(completeness(p.T), o.completeness_power);
+    return p;
+  };
   std::vector<Pose> refined;
   std::vector<cv::Matx33d> seeds;
   for (const Coarse& c : coarse) {
@@ -492,7 +535,7 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     for (const auto& sd : seeds) distinct = distinct && PoseDistance(sd, T, probe) > 2 * cell;
     if (!distinct) continue;
     seeds.push_back(T);
-    refined.push_back(refine(T, c.s, 0.5 * cell));
+    refined.push_back(weigh(refine(T, c.s, 0.5 * cell)));
   }
   std::sort(refined.begin(), refined.end(), [](const Pose& a, const Pose& b) { return a.z > b.z; });
   const size_t bi = 0;
@@ -533,6 +576,8 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     const cv::Matx33d& T = best.T;
     const double s = std::sqrt(std::abs(T(0, 0) * T(1, 1) - T(0, 1) * T(1, 0)));
     best.z = fine_score(best.T, field_for(s), &best.coverage);
+    res.completeness = completeness(best.T);
+    if (o.completeness_power > 0 && best.z > 0) best.z *= std::pow(res.completeness, o.completeness_power);
   }
   res.photo_to_depth = best.T;
   // The photo's lean (edge_evidence.h): the scores above are of the pose
@@ -559,6 +604,7 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     const cv::Matx33d D = best.T.inv();
     std::vector<int> per(outlines.size(), 0);
     for (const auto& smp : samples) {
+      if (smp.b < 0) continue;
       const cv::Point2d p = Map(D, smp.q);
       const double u = p.x * ps, v = p.y * ps;
       if (u >= 0 && v >= 0 && u < grey.cols && v < grey.rows) ++per[size_t(smp.b)];
@@ -573,8 +619,9 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   const bool held = !evidence || !o.perspective || moved < o.distinct_px;
   res.held = held;
   res.ok = res.confidence >= o.min_confidence && edge_ok && res.outlines_in_view >= o.min_outlines && held;
-  res.reason = cv::format("outline search: score %.1f, runner-up %.1f, confidence %.2f, coverage %.2f, %d outlines in view, %d poses",
-                          best.z, runner, res.confidence, best.coverage, res.outlines_in_view, res.poses);
+  res.reason = cv::format("outline search: score %.1f, runner-up %.1f, confidence %.2f, coverage %.2f, completeness %.2f, "
+                          "%d outlines in view, %d poses",
+                          best.z, runner, res.confidence, best.coverage, res.completeness, res.outlines_in_view, res.poses);
   if (evidence && res.edge.enough)
     res.reason += cv::format(", outline edge contrast %.2f, %d of %d outlines on edges", res.edge.contrast,
                              res.edge.regions_on_edges, res.edge.regions);

@@ -28,7 +28,9 @@
 //  3. The best distinct coarse poses are refined at photo resolution
 //     (coordinate ascent of the same score on the similarity), then by the
 //     image check's edge refinement (EdgeEvidence::Refine, similarity then
-//     homography) when an EdgeEvidence is given.
+//     homography) when an EdgeEvidence is given. A refined pose's score is
+//     weighted by its completeness (completeness_power): the share of the
+//     building outlines' arcs in view that lie on edges.
 //  4. Acceptance (never a wrong success): the best refined pose must beat
 //     the best refined pose that is clearly different (its outlines > 10
 //     depth px away on average: a null from the same search, which accounts
@@ -73,6 +75,17 @@ struct OutlineSearchOptions {
                                     //   evidence, the image check passed with at least min_on_edges of
                                     //   the outlines in view on edges
   double min_on_edges = 0.5;
+  // Objects (trees, hedges, sheds: the `objects` of SearchOutlines) join the
+  // score at this weight per sample: their crowns and ends are ragged, and a
+  // tree lines up with any textured patch (at 1 they cost answers; issue 21).
+  double object_weight = 0.5;
+  // Completeness (issue 21, small tiles): each refined pose's score is
+  // multiplied by the share of its building outlines' arcs in view (8
+  // samples each) whose own score is positive, to this power (0: off). The
+  // score sums over samples, so a pose that lays two sides of each roof on a
+  // road's edges scores as well as the roofs themselves; only the roofs put
+  // the rest of their outlines on edges too.
+  double completeness_power = 1.0;
   bool perspective = true;          // final EdgeEvidence refinement includes the homography; with
                                     //   evidence, an answer must then hold under it (move its outlines
                                     //   < distinct_px): a similarity the refinement leaves is not the pose
@@ -87,6 +100,7 @@ struct OutlineSearchResult {
   double confidence = 0;             // [0, 1]
   double score = 0, runner_up = 0;   // refined z-scores of the best and of the best clearly different pose
   double coverage = 0;               // share of outline samples inside the photo at the answer
+  double completeness = 0;           // share of the building outlines' arcs in view on edges at the answer
   int outlines_in_view = 0;          // outlines with >= 10 samples inside the photo at the answer
   EdgeScore edge;                    // image check at the answer (when evidence given)
   cv::Point2d lean_px_per_m{0, 0};   // the photo's lean estimated by the final refinement (edge_evidence.h)
@@ -104,7 +118,13 @@ struct OutlineSearchResult {
 // `evidence` (optional): the image check on the same outlines and scene (its
 // photo may be larger than `photo`: both are addressed in contour px); used
 // for the final refinement and acceptance.
+// `objects` (optional): outlines of what else stands above the ground (trees,
+// hedges, sheds: ObjectOutlines, depth_regions.h), depth px. They join the
+// template the poses are scored by (at object_weight), never the outline
+// count, the cell size, the completeness or the acceptance, which stay the
+// buildings'.
 OutlineSearchResult SearchOutlines(const cv::Mat& photo, double photo_scale, const std::vector<Contour>& outlines,
-                                   const OutlineSearchOptions& options = {}, const EdgeEvidence* evidence = nullptr);
+                                   const OutlineSearchOptions& options = {}, const EdgeEvidence* evidence = nullptr,
+                                   const std::vector<Contour>* objects = nullptr);
 
 }  // namespace mvkp

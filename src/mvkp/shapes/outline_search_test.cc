@@ -1,11 +1,13 @@
 #include "mvkp/shapes/outline_search.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include <gtest/gtest.h>
 #include <string>
 #include <opencv2/imgproc.hpp>
 
+#include "mvkp/core/error.h"
 #include "mvkp/shapes/edge_evidence.h"
 
 namespace mvkp {
@@ -19,6 +21,15 @@ cv::Point2d Apply(const cv::Matx33d& H, cv::Point2d p) {
 cv::Matx33d Similarity(double s, double deg, double tx, double ty) {
   const double a = deg * CV_PI / 180, c = s * std::cos(a), n = s * std::sin(a);
   return {c, -n, tx, n, c, ty, 0, 0, 1};
+}
+
+// The similarity of scale s and rotation deg that maps the centre of a
+// photo of `size` onto depth point `at`.
+cv::Matx33d Centred(double s, double deg, cv::Size size, cv::Point2d at = {100, 100}) {
+  cv::Matx33d T = Similarity(s, deg, 0, 0);
+  const cv::Point2d c = Apply(T, {size.width / 2.0, size.height / 2.0});
+  T(0, 2) = at.x - c.x, T(1, 2) = at.y - c.y;
+  return T;
 }
 
 // A few building outlines in a depth image of 200 x 200 px.
@@ -81,10 +92,7 @@ TEST(OutlineSearch, FindsDrawnOutlinesExactly) {
   const auto b = Buildings();
   for (const auto& [s, deg] : {std::pair{0.6, 37.0}, std::pair{1.0, 200.0}, std::pair{2.0, 300.0}}) {
     const cv::Size size(int(260 / s), int(240 / s));
-    // photo centre onto depth (100, 100)
-    cv::Matx33d T = Similarity(s, deg, 0, 0);
-    const cv::Point2d c = Apply(T, {size.width / 2.0, size.height / 2.0});
-    T(0, 2) = 100 - c.x, T(1, 2) = 100 - c.y;
+    cv::Matx33d T = Centred(s, deg, size);
     const cv::Mat photo = Photo(b, T, size, 7);
     const OutlineSearchResult r = SearchOutlines(photo, 1.0, b);
     SCOPED_TRACE(r.reason);
@@ -103,9 +111,7 @@ TEST(OutlineSearch, FindsDrawnOutlinesExactly) {
 TEST(OutlineSearch, APoseTheImageCheckMovesFarIsRefused) {
   const auto b = Buildings();
   const cv::Size size(260, 240);
-  cv::Matx33d T = Similarity(1.0, 200.0, 0, 0);
-  const cv::Point2d c = Apply(T, {size.width / 2.0, size.height / 2.0});
-  T(0, 2) = 100 - c.x, T(1, 2) = 100 - c.y;
+  cv::Matx33d T = Centred(1.0, 200.0, size);
   const cv::Mat photo = Photo(b, T, size, 7);
   cv::Matx33d moved = T;
   moved(0, 2) += 12;  // the evidence's photo: every building 12 depth px along x
@@ -141,9 +147,7 @@ TEST(OutlineSearch, APhotoOfPartOfALargeTileHoldsWhereItSees) {
         b.push_back({{x, y}, {x, y + h}, {x + w, y + h}, {x + w, y}});
     }
   const cv::Size size(360, 340);
-  cv::Matx33d T = Similarity(1.0, 25.0, 0, 0);
-  const cv::Point2d c = Apply(T, {size.width / 2.0, size.height / 2.0});
-  T(0, 2) = 200 - c.x, T(1, 2) = 190 - c.y;
+  cv::Matx33d T = Centred(1.0, 25.0, size, {200, 190});
   T(2, 0) = 1.5e-4, T(2, 1) = -1.2e-4;  // perspective
   const cv::Mat photo = Photo(b, T, size, 11);
   const EdgeEvidence ev(photo, 1.0, b);
@@ -151,6 +155,62 @@ TEST(OutlineSearch, APhotoOfPartOfALargeTileHoldsWhereItSees) {
   EXPECT_TRUE(r.ok) << r.reason;
   EXPECT_EQ(r.model, "perspective");
   EXPECT_LT(MeanError(r.photo_to_depth, T, size), 2.0) << r.reason;
+}
+
+// Completeness (OutlineSearchOptions::completeness_power): a photo that
+// shows only the long sides of each rectangular building, drawn as lines
+// running on past its corners (a road's kerbs), puts half of each outline
+// on edges at the true pose. Roofs put all of it.
+TEST(OutlineSearch, CompletenessCountsTheArcsOnEdges) {
+  const auto b = Buildings();
+  const cv::Size size(260, 240);
+  cv::Matx33d T = Centred(1.0, 200.0, size);
+  const OutlineSearchResult roofs = SearchOutlines(Photo(b, T, size, 7), 1.0, b);
+  EXPECT_TRUE(roofs.ok) << roofs.reason;
+  EXPECT_GE(roofs.completeness, 0.9) << roofs.reason;
+  cv::Mat1b kerbs(size, 90);
+  const cv::Matx33d D = T.inv();
+  for (const Contour& o : b) {
+    if (o.size() != 4) continue;
+    const bool along_x = std::abs(o[2].x - o[0].x) >= std::abs(o[2].y - o[0].y);
+    for (const auto& [p, q] : along_x ? std::vector<std::pair<cv::Point2f, cv::Point2f>>{{o[0], o[3]}, {o[1], o[2]}}
+                                      : std::vector<std::pair<cv::Point2f, cv::Point2f>>{{o[0], o[1]}, {o[3], o[2]}}) {
+      const cv::Point2f d = (q - p) * 0.8f;  // on past both corners
+      cv::line(kerbs, Apply(D, cv::Point2d(p - d)), Apply(D, cv::Point2d(q + d)), cv::Scalar(200), 2, cv::LINE_AA);
+    }
+  }
+  cv::GaussianBlur(kerbs, kerbs, cv::Size(), 0.8);
+  OutlineSearchOptions off;
+  off.completeness_power = 0;
+  const OutlineSearchResult k0 = SearchOutlines(kerbs, 1.0, b, off), k1 = SearchOutlines(kerbs, 1.0, b);
+  std::printf("roofs: completeness %.2f; kerbs: %s / %s\n", roofs.completeness, k0.reason.c_str(), k1.reason.c_str());
+  EXPECT_LE(k1.completeness, 0.75) << k1.reason;
+  EXPECT_LT(k1.score, k0.score) << k1.reason;
+  OutlineSearchOptions bad;
+  bad.completeness_power = -1;
+  EXPECT_THROW(SearchOutlines(kerbs, 1.0, b, bad), Error);
+  bad = OutlineSearchOptions{};
+  bad.object_weight = 2;
+  EXPECT_THROW(SearchOutlines(kerbs, 1.0, b, bad), Error);
+}
+
+// Objects (trees, hedges) join the score but are never outlines in view:
+// a photo of the buildings and of a hedge row is registered with or
+// without the hedges, with the same outlines in view.
+TEST(OutlineSearch, ObjectsScoreButAreNotOutlines) {
+  const auto b = Buildings();
+  const std::vector<Contour> hedges = {{{10, 95}, {110, 95}, {110, 97}, {10, 97}}, {{105, 5}, {107, 5}, {107, 100}, {105, 100}}};
+  const cv::Size size(260, 240);
+  cv::Matx33d T = Centred(1.0, 37.0, size);
+  std::vector<Contour> all = b;
+  all.insert(all.end(), hedges.begin(), hedges.end());
+  const cv::Mat photo = Photo(all, T, size, 3);
+  const OutlineSearchResult with = SearchOutlines(photo, 1.0, b, {}, nullptr, &hedges), without = SearchOutlines(photo, 1.0, b);
+  EXPECT_TRUE(with.ok) << with.reason;
+  EXPECT_TRUE(without.ok) << without.reason;
+  EXPECT_LT(MeanError(with.photo_to_depth, T, size), 1.0);
+  EXPECT_EQ(with.outlines_in_view, without.outlines_in_view);
+  EXPECT_LE(with.outlines_in_view, int(b.size()));
 }
 
 // Other ground: a photo of different buildings (and clutter). Whatever pose
