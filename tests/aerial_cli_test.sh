@@ -172,8 +172,15 @@ struct.pack_into("<H", h, 105, 20); struct.pack_into("<I", h, 107, 10**9)
 struct.pack_into("<ddd", h, 131, 0.01, 0.01, 0.01)
 open(t + "/huge.las", "wb").write(bytes(h) + b"\0" * 173)
 PYEOF
-expect_fail "--outline-completeness out of range" "outline-completeness" "$MVKP" register "$T/c/city_0000/depth.tif" "$T/c/city_0000/photo.png" --outline-completeness 5
-expect_fail "--outline-object-weight out of range" "outline-object-weight" "$MVKP" register "$T/c/city_0000/depth.tif" "$T/c/city_0000/photo.png" --outline-object-weight 2
+for bad in "--outline-completeness 5" "--outline-object-weight 2"; do
+  # shellcheck disable=SC2086  # the option and its value as two words
+  run "$MVKP" register "$T/c/city_0000/depth.tif" "$T/c/city_0000/photo.png" $bad
+  if ((RC == 2)) && grep -qF -- "${bad% *}" "$T/err"; then
+    ok "register $bad is a usage error"
+  else
+    fail "register $bad: exit $RC: $(first_err)"
+  fi
+done
 expect_fail "flat depth" "flat" "$MVKP" register "$T/flat.tif" "$T/c/city_0000/photo.png"
 expect_fail "depth with no data anywhere" "no data" "$MVKP" segment depth "$T/nan.tif"
 expect_fail "LAS header claiming 10^9 points" "huge.las" "$MVKP" segment depth "$T/huge.las"
