@@ -173,7 +173,8 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
     cv::Mat1f above;
     const bool want_objects = o.outline_objects && o.method != AerialOptions::Method::kRegions;
     dregions = SegmentDepth(depth, o.depth, nullptr, want_objects ? &above : nullptr);
-    if (want_objects)
+    // (small tiles only: the outline search scores them there alone)
+    if (want_objects && (o.large_tile_regions <= 0 || int(dregions.size()) <= o.large_tile_regions))
       for (auto& c : ObjectOutlines(above, dregions, o.objects)) objects.emplace_back(c.begin(), c.end());
   }
   depth.release();
