@@ -27,6 +27,15 @@ double CornerError(const City& c, const cv::Matx33d& H) {
   return n ? sum / n : 1e9;
 }
 
+// The outline search as it was before completeness and the trees
+// (2026-12-07): the scenes earlier tests were found on.
+AerialOptions OutlineSearchBeforeCompleteness() {
+  AerialOptions o;
+  o.outline_objects = false;
+  o.outline.completeness_power = 0;
+  return o;
+}
+
 TEST(Aerial, RegistersGeneratedScenesOrSaysNo) {
   CityOptions o;
   o.width = o.height = 600;
@@ -647,9 +656,7 @@ TEST(Aerial, AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused) {
   }
   // The search as it was when the rule was made (no objects, no
   // completeness: since then the search no longer finds that pose first).
-  AerialOptions old;
-  old.outline_objects = false;
-  old.outline.completeness_power = 0;
+  const AerialOptions old = OutlineSearchBeforeCompleteness();
   const AerialRegistration ro = RegisterAerial(c.depth, c.photo, old);
   AerialOptions off = old;
   off.outline_roof_veto_regions = 0;
@@ -694,10 +701,7 @@ TEST(Aerial, SmallTilesRegisterByCompleteOutlinesAndTrees) {
     o.buildings = k.buildings;
     const City c = MakeCity(o, k.seed);
     const AerialRegistration r = RegisterAerial(c.depth, c.photo);
-    AerialOptions old;
-    old.outline_objects = false;
-    old.outline.completeness_power = 0;
-    const AerialRegistration w = RegisterAerial(c.depth, c.photo, old);
+    const AerialRegistration w = RegisterAerial(c.depth, c.photo, OutlineSearchBeforeCompleteness());
     std::printf("%s %llu: %s; without: %s\n", k.style, static_cast<unsigned long long>(k.seed),
                 r.registration.ok ? cv::format("%s, %.2f px", r.method.c_str(), CornerError(c, r.registration.photo_to_depth)).c_str()
                                   : r.registration.reason.c_str(),
