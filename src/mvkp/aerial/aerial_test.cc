@@ -27,6 +27,14 @@ double CornerError(const City& c, const cv::Matx33d& H) {
   return n ? sum / n : 1e9;
 }
 
+// An answer, if any, within 5 depth px of the truth ("not found" beats a
+// wrong outline).
+void ExpectRightOrNone(const City& c, const AerialRegistration& r) {
+  if (r.registration.ok) {
+    EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
+  }
+}
+
 // The outline search as it was before completeness and the trees
 // (2026-12-07): the scenes earlier tests were found on.
 AerialOptions OutlineSearchBeforeCompleteness() {
@@ -260,17 +268,13 @@ TEST(Aerial, AClearOutlineWinnerIsRelocatedOntoTheEdges) {
   const AerialRegistration r = RegisterAerial(c.depth, c.photo, ao);
   ASSERT_TRUE(r.outline_search_ran);
   const bool relocated = r.registration.reason.find("px onto edges") != std::string::npos;
-  if (r.registration.ok) {
-    EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
-  }
+  ExpectRightOrNone(c, r);
   AerialOptions off = ao;
   off.outline_relocate_confidence = 0;
   // without the relocation the cast shadows single out a pose here (margin
   // >= 0.3), which must be right when it answers
   const AerialRegistration v = RegisterAerial(c.depth, c.photo, off);
-  if (v.registration.ok) {
-    EXPECT_LE(CornerError(c, v.registration.photo_to_depth), 5.0) << v.registration.reason;
-  }
+  ExpectRightOrNone(c, v);
   off.cast_shadow_confirm_margin = 0;
   const AerialRegistration w = RegisterAerial(c.depth, c.photo, off);
   EXPECT_EQ(w.registration.reason.find("px onto edges"), std::string::npos);
@@ -448,9 +452,7 @@ TEST(Aerial, ARelocationTheEdgesClearlyPreferIsKept) {
   o.style = "dense";
   const City c = MakeCity(o, 123u * 1000003u + 10u);
   const AerialRegistration r = RegisterAerial(c.depth, c.photo);
-  if (r.registration.ok) {
-    EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
-  }
+  ExpectRightOrNone(c, r);
   // Without it (GCC's build: 5.3 px off; another compiler's rounding changes
   // the scene, so this part is printed, not asserted).
   AerialOptions off;
@@ -648,9 +650,7 @@ TEST(Aerial, AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused) {
   o.style = "suburb";
   const City c = MakeCity(o, 129u * 1000003u + 19u);
   const AerialRegistration r = RegisterAerial(c.depth, c.photo);
-  if (r.registration.ok) {
-    EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
-  }
+  ExpectRightOrNone(c, r);
   if (r.method == "outlines") {
     EXPECT_GE(r.registration.edge.roof_contrast, EdgeEvidenceOptions{}.roof_veto);
   }
@@ -665,9 +665,7 @@ TEST(Aerial, AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused) {
               w.registration.ok ? cv::format("%s, %.1f px", w.method.c_str(),
                                              CornerError(c, w.registration.photo_to_depth)).c_str()
                                 : "no registration");
-  if (ro.registration.ok) {
-    EXPECT_LE(CornerError(c, ro.registration.photo_to_depth), 5.0) << ro.registration.reason;
-  }
+  ExpectRightOrNone(c, ro);
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
   // the scene this was found on: a far-off outline answer without the rule
   EXPECT_FALSE(ro.registration.ok) << ro.registration.reason;
@@ -706,12 +704,8 @@ TEST(Aerial, SmallTilesRegisterByCompleteOutlinesAndTrees) {
                 r.registration.ok ? cv::format("%s, %.2f px", r.method.c_str(), CornerError(c, r.registration.photo_to_depth)).c_str()
                                   : r.registration.reason.c_str(),
                 w.registration.ok ? cv::format("%.2f px", CornerError(c, w.registration.photo_to_depth)).c_str() : "no registration");
-    if (r.registration.ok) {
-      EXPECT_LE(CornerError(c, r.registration.photo_to_depth), 5.0) << r.registration.reason;
-    }
-    if (w.registration.ok) {
-      EXPECT_LE(CornerError(c, w.registration.photo_to_depth), 5.0) << w.registration.reason;
-    }
+    ExpectRightOrNone(c, r);
+    ExpectRightOrNone(c, w);
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
     // the scenes this was measured on
     EXPECT_TRUE(r.registration.ok) << r.registration.reason;
