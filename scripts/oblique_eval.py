@@ -296,7 +296,7 @@ def main():
                     row[m] = {"error_px": err, "view_ms": j.get("time_ms", {}).get("total", 0),
                               **{k: j.get(k) for k in ("inliers", "lifted", "inlier_tiles", "inlier_cells",
                                                        "inlier_height_span_m", "nadir_gsd_m", "rms_px",
-                                                       "scale", "refinement", "method", "fusion")},
+                                                       "scale", "refinement", "outline_refinement", "method", "fusion")},
                               "ms": j.get("time_ms", {}).get("total", 0) + j.get("train_share_ms", 0)}
                     continue
                 row[m] = {"error_px": err, "ms": (time.perf_counter() - t0) * 1000}
