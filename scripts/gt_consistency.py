@@ -90,14 +90,12 @@ def main():
         He /= He[2, 2]
         d = np.linalg.norm(project(He, corners) - project(H, corners), axis=1)
         name = '/'.join(f[0].split('/')[-2:]) + ' -> ' + f[1].split('/')[-1]
-        witness = ''
         inl = sift_inliers(im1, im2)
+        witness = '  | SIFT finds too few inliers'
         if inl is not None:
             e_truth = np.median(np.linalg.norm(project(H, inl[0]) - inl[1], axis=1))
             e_ecc = np.median(np.linalg.norm(project(He, inl[0]) - inl[1], axis=1))
             witness = f'  | {len(inl[0]):4d}  {e_truth:5.2f} / {e_ecc:5.2f}'
-        else:
-            witness = '  | SIFT finds too few inliers'
         print(f'{name:38s} {d.mean():6.2f}  {np.round(d, 1)}  {cc:.3f}{witness}')
 
 
