@@ -510,6 +510,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "is kept when the outlines lie on edges this much better (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
+  c->add_option("--relocate-lean-roof-gain", a->edge.relocate_lean_roof_gain,
+                "image check: the lean jump is also kept at a 2 % edge gain when the roofs inside the outlines "
+                "stand apart this share more (0: the edge gain alone decides)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0));
   c->add_flag("!--no-joint-lean", a->opt.joint_lean_fit,
               "estimate the lean from the lean-free fit only (no second start from the region pairs refitted "
               "with the lean)");

@@ -36,9 +36,12 @@ void EdgeEvidenceOptions::Check() const {
        "EdgeEvidenceOptions: roof_accept, roof_veto, roof_veto_below >= 0, min_contrast_with_roofs > 0");
   need(relocate_radius_px > 0 && relocate_radius_px <= 200 && relocate_grid_px > 0 &&
            relocate_grid_px <= relocate_radius_px && relocate_cells >= 2 && relocate_cells <= 16 &&
-           relocate_min_gain >= 0 && relocate_rounds >= 0 && relocate_lean_gain >= 0 && relocate_lean_outlines >= 1,
+           relocate_min_gain >= 0 && relocate_rounds >= 0 && relocate_lean_gain >= 0 && relocate_lean_roof_gain >= 0 &&
+           relocate_lean_min_gain >= 0 &&
+           (relocate_lean_gain == 0 || relocate_lean_min_gain <= relocate_lean_gain) && relocate_lean_outlines >= 1,
        "EdgeEvidenceOptions: relocate_radius_px in (0, 200], relocate_grid_px in (0, relocate_radius_px], "
        "relocate_cells in [2, 16], relocate_min_gain >= 0, relocate_rounds >= 0, relocate_lean_gain >= 0, "
+       "relocate_lean_roof_gain >= 0, relocate_lean_min_gain in [0, relocate_lean_gain] (unless that is 0: off), "
        "relocate_lean_outlines >= 1");
 }
 
@@ -598,6 +601,8 @@ bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
   if (lm <= 0 || !e0.enough || e0.regions < opt_.relocate_lean_outlines ||
       !LeanDetermined(S * photo_to_depth.inv(), lean, nullptr))
     return false;
+  // the edge gain asked of a candidate: the lower one when roofs may decide
+  const double gate = opt_.relocate_lean_roof_gain > 0 ? opt_.relocate_lean_min_gain : opt_.relocate_lean_gain;
   std::vector<cv::Point2d> leans;
   if (lean != cv::Point2d()) leans.emplace_back(0, 0);
   for (double r : {0.35, 0.7})
@@ -614,13 +619,13 @@ bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
   for (cv::Point2d c : leans) {
     const cv::Matx33d T = RefineImpl(photo_to_depth, perspective, true, nullptr, &c, /*estimate_lean=*/false, 2);
     const EdgeScore e = Evaluate(T, c);
-    if (fair(e) && e.on >= (1 + opt_.relocate_lean_gain) * e0.on && (!found || e.on > best.on))
+    if (fair(e) && e.on >= (1 + gate) * e0.on && (!found || e.on > best.on))
       found = true, best = e, *T_out = T, *lean_out = c;
   }
   if (!found) return false;
   *T_out = RefineImpl(*T_out, perspective, true, nullptr, lean_out, /*estimate_lean=*/false, 1);
   best = Evaluate(*T_out, *lean_out);
-  if (!fair(best) || best.on < (1 + opt_.relocate_lean_gain) * e0.on) return false;
+  if (!fair(best) || best.on < (1 + gate) * e0.on) return false;
   // the lean refined with the transform from there
   cv::Point2d l = *lean_out;
   const cv::Matx33d T2 = Refine(*T_out, perspective, true, nullptr, &l);
@@ -649,13 +654,19 @@ bool EdgeEvidence::LeanJump(const cv::Matx33d& photo_to_depth, cv::Point2d lean,
       if (!improved) break;
     }
   best = Evaluate(*T_out, *lean_out);
-  if (!fair(best) || best.on < (1 + opt_.relocate_lean_gain) * e0.on) return false;
+  if (!fair(best) || best.on < (1 + gate) * e0.on) return false;
   // the roofs, independent of the edges, must agree
   EdgeScore r0 = e0;
   ScoreRoofs(photo_to_depth, lean, &r0);
   ScoreRoofs(*T_out, *lean_out, &best);
+  // at the full edge gain the roofs must stand apart no less; below it,
+  // clearly more (the best candidate is the same either way: the one whose
+  // edges gain most)
+  const bool edges_decide = best.on >= (1 + opt_.relocate_lean_gain) * e0.on;
+  const bool roofs_decide =
+      opt_.relocate_lean_roof_gain > 0 && best.roof_contrast >= (1 + opt_.relocate_lean_roof_gain) * r0.roof_contrast;
   if (r0.roof_regions < opt_.min_roof_regions || best.roof_regions < opt_.min_roof_regions ||
-      best.roof_contrast < r0.roof_contrast || !Accepts(best))
+      best.roof_contrast < r0.roof_contrast || !Accepts(best) || !(edges_decide || roofs_decide))
     return false;
   *e_out = best;
   return true;

@@ -98,6 +98,8 @@ struct EdgeEvidenceOptions {
   int relocate_rounds = 3;             // relocations at most
   double relocate_lean_gain = 0.05;    // Relocate's lean jump: kept when its edge response is this much
                                        //   higher (0: off) ...
+  double relocate_lean_roof_gain = 0.15;  // ... or only relocate_lean_min_gain higher when its roofs
+  double relocate_lean_min_gain = 0.02;   //   (ScoreRoofs) stand apart this share more (0: no such case)
   int relocate_lean_outlines = 10;     // ... tried with at least this many outlines in view
   void Check() const;         // throws Error(kInvalidArgument)
 };
@@ -200,7 +202,9 @@ class EdgeEvidence {
   // edge response beats the answer's by relocate_lean_gain with no fewer
   // outlines and no fewer samples in view, the roofs (ScoreRoofs, the
   // independent evidence) stand apart no less, and the image check accepts
-  // it. Tried with relocate_lean_outlines in view or more: on small tiles
+  // it; or, when its roofs stand apart relocate_lean_roof_gain more, by
+  // relocate_lean_min_gain only (a lean trap's edges are nearly as good
+  // as the truth's, its roofs are not: issue 21, docs/aerial.md). Tried with relocate_lean_outlines in view or more: on small tiles
   // (6 outlines) a jump overshot the lean and left a right answer 7 px off.
   // The result's roofs are scored (edge.roof_regions > 0) when it jumped.
   struct Relocation {
