@@ -515,6 +515,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "stand apart this share more (0: the edge gain alone decides)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 10.0));
+  c->add_option("--lean-min-roof-ratio", a->opt.lean_min_roof_ratio,
+                "region route: the answer refined with the photo's lean replaces the lean-free one only when "
+                "the roofs inside its outlines stand apart at least this share as much (0: the edges alone decide)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 2.0));
   c->add_flag("!--no-joint-lean", a->opt.joint_lean_fit,
               "estimate the lean from the lean-free fit only (no second start from the region pairs refitted "
               "with the lean)");

@@ -123,6 +123,8 @@ def test_aerial_bad_input(city):
         mvkp.register_aerial(city.depth, city.photo, edge_options=mvkp.EdgeEvidenceOptions(relocate_lean_gain=-0.1))
     with pytest.raises(ValueError, match="relocate_rms_free_gain"):
         mvkp.register_aerial(city.depth, city.photo, relocate_rms_free_gain=-0.1)
+    with pytest.raises(ValueError, match="lean_min_roof_ratio"):
+        mvkp.register_aerial(city.depth, city.photo, lean_min_roof_ratio=-0.5)
 
 
 @pytest.mark.skipif(not __import__("os").environ.get("MVKP_CLI"), reason="MVKP_CLI not set")

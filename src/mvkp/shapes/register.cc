@@ -31,6 +31,7 @@ void RegistrationOptions::Check() const {
   need(max_anisotropy == 0 || (max_anisotropy >= 1 && std::isfinite(max_anisotropy)),
        "RegistrationOptions.max_anisotropy must be 0 (off) or >= 1");
   need(joint_lean_gain >= 0 && std::isfinite(joint_lean_gain), "RegistrationOptions.joint_lean_gain must be >= 0");
+  need(lean_min_roof_ratio >= 0 && lean_min_roof_ratio <= 2, "RegistrationOptions.lean_min_roof_ratio in [0, 2]");
   need(min_regions >= 2 && min_regions_with_evidence >= 2,
        "RegistrationOptions: min_regions and min_regions_with_evidence must be >= 2");
   need(min_inlier_ratio >= 0 && min_inlier_ratio <= 1 && min_inlier_ratio_with_evidence >= 0 &&
@@ -542,6 +543,22 @@ static bool LeanAnswerPasses(const EdgeEvidence& ev, const cv::Matx33d& T3, cv::
   return ImagePasses(ev, T3, lean, e3) && e3->regions_on_edges >= accepted.regions_on_edges &&
          NadirShape(T3, extent, opt).empty() &&
          LocalScaleRotation(T3, at, &scale, &rot);
+}
+
+// The lean answer (T3, lean; image check e3) against the lean-free one (T,
+// image check e): its roofs must stand apart at least `min_ratio` as much.
+// Both scored over at least min_roof_veto_regions outlines, else (and with
+// min_ratio 0) no verdict: true. The lean has two parameters of its own that
+// the edges alone can spend on a lean traded for a translation; the roofs,
+// an evidence the refinement did not maximise, then drop.
+static bool LeanKeepsRoofs(const EdgeEvidence& ev, const cv::Matx33d& T, EdgeScore e, const cv::Matx33d& T3,
+                           cv::Point2d lean, double min_ratio, EdgeScore* e3) {
+  if (min_ratio <= 0) return true;
+  ev.ScoreRoofs(T, {}, &e);
+  ev.ScoreRoofs(T3, lean, e3);
+  const int need = ev.options().min_roof_veto_regions;
+  if (e.roof_regions < need || e3->roof_regions < need) return true;
+  return e3->roof_contrast >= min_ratio * e.roof_contrast;
 }
 
 // The region pairs refitted with the photo's lean: a conventional
@@ -1140,7 +1157,8 @@ Registration RegisterContours(const std::vector<Contour>& photo_regions, const s
     // the roofs, errs most far from them, where the two differ most.)
     EdgeScore e3;
     if (lean_answer && LeanAnswerPasses(*evidence, lean_answer->T, lean_answer->lean, res.edge, opt, photo_extent,
-                                        photo[pairs[0].first].centroid, &e3)) {
+                                        photo[pairs[0].first].centroid, &e3) &&
+        LeanKeepsRoofs(*evidence, f.T, res.edge, lean_answer->T, lean_answer->lean, opt.lean_min_roof_ratio, &e3)) {
       f.T = lean_answer->T, res.edge = e3, res.lean_px_per_m = lean_answer->lean;
       verifier.ClosestPoints(f.T, pairs, 2 * tol, &f.rms);
     }

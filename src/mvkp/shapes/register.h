@@ -88,6 +88,11 @@ struct RegistrationOptions {
                                       //   with it (an affine + the lean by least squares)
   double joint_lean_gain = 0.15;      // ... which replaces the first lean answer when its edge
                                       //   contrast is this share higher
+  double lean_min_roof_ratio = 0.95;  // the lean answer replaces the lean-free one only when the
+                                      //   roofs inside its outlines (EdgeEvidence::ScoreRoofs) stand
+                                      //   apart at least this share as much: of 20 replacements that
+                                      //   lowered them by > 5 %, 14 moved the answer off the truth and 1
+                                      //   onto it (issue 21); 0: the edges alone decide
   double max_perspective = 0.25;       // refuse a transform whose projective divisor changes by more
                                       //   than this across the photo's regions (a nadir photo's changes
                                       //   by a few per cent; wrong sets fitted 0.3+); 0: no check
