@@ -774,6 +774,27 @@ TEST(Aerial, SmallTilesRegisterByCompleteOutlinesAndTrees) {
   }
 }
 
+// One outline is no layout, for the image check either
+// (OutlineSearchOptions::min_outlines). Seed 136's small civic tile 3: a
+// 34 x 42 px photo (0.38 photo px per depth px) in which the search counts
+// 2 outlines in view and the image check, sampling them more sparsely, 1,
+// on edges at contrast 5.5. The pose was 52.6 px off; now there is none.
+TEST(Aerial, AnOutlineAnswerNeedsTwoOutlinesInTheImageCheck) {
+  CityOptions o;
+  o.style = "civic";
+  o.width = o.height = 200;
+  o.trees = 4;
+  const std::uint64_t seed = 136u * 1000003u + 3u;
+  o.buildings = 3 + int(seed % 4);  // synth-city --buildings 3 --max-buildings 6
+  const City c = MakeCity(o, seed);
+  const AerialRegistration r = RegisterAerial(c.depth, c.photo);
+  std::printf("photo %d x %d: %s\n", c.photo.cols, c.photo.rows,
+              r.registration.ok ? cv::format("%s, %.2f px", r.method.c_str(), CornerError(c, r.registration.photo_to_depth)).c_str()
+                                : r.registration.reason.c_str());
+  ASSERT_LT(c.photo.cols * c.photo.rows, 60 * 60) << "not the scene this was measured on";
+  ExpectRightOrNone(c, r);
+}
+
 TEST(Aerial, ImageCheckCanBeTurnedOff) {
   CityOptions o;
   o.width = o.height = 500;

@@ -611,7 +611,13 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     }
     for (int c : per) res.outlines_in_view += c >= 10;
   }
-  const bool edge_ok = !evidence || (evidence->Accepts(res.edge) && res.edge.regions_on_edges >= o.min_on_edges * res.edge.regions);
+  // The image check must see min_outlines outlines too: it samples them
+  // more sparsely than the search (EdgeEvidenceOptions::step_px, and
+  // min_region_points per outline), and seed 136's 34 x 42 px photo passed
+  // with 2 outlines in view for the search, 1 for the check (a lone roof on
+  // edges at contrast 5.5), 52.6 px off.
+  const bool edge_ok = !evidence || (evidence->Accepts(res.edge) && res.edge.regions >= o.min_outlines &&
+                                     res.edge.regions_on_edges >= o.min_on_edges * res.edge.regions);
   // Held under the perspective refinement: on 1000 x 1000 tiles (photos with
   // up to 0.1 of perspective) the similarities it moved >= distinct_px were
   // 3.3-8.6 px from the truth (issue 21, docs/aerial.md); no small-tile
@@ -625,6 +631,8 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   if (evidence && res.edge.enough)
     res.reason += cv::format(", outline edge contrast %.2f, %d of %d outlines on edges", res.edge.contrast,
                              res.edge.regions_on_edges, res.edge.regions);
+  if (evidence && res.edge.enough && res.edge.regions < o.min_outlines)
+    res.reason += cv::format(", fewer than %d outlines in view for the image check", o.min_outlines);
   if (!held)
     res.reason += cv::format(", the image check's perspective refinement moves it %.1f px (>= %.0f): not the pose",
                              moved, o.distinct_px);

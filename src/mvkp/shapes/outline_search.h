@@ -71,9 +71,9 @@ struct OutlineSearchOptions {
                                     //   are different answers
   double min_confidence = 0.5;      // accepted at confidence >= this ...
   int min_outlines = 2;             // ... with this many outlines in view (1 is not enough: a lone
-                                    //   outline sits on any similar rectangle of other ground), and, with
-                                    //   evidence, the image check passed with at least min_on_edges of
-                                    //   the outlines in view on edges
+                                    //   outline sits on any similar rectangle of other ground), for the
+                                    //   search and, with evidence, for the image check too, which must
+                                    //   pass with at least min_on_edges of the outlines in view on edges
   double min_on_edges = 0.5;
   // Objects (trees, hedges, sheds: the `objects` of SearchOutlines) join the
   // score at this weight per sample: their crowns and ends are ragged, and a
