@@ -288,3 +288,17 @@ def test_outline_objects_and_completeness(city):
         mvkp.register_aerial(city.depth, city.photo, outline_completeness=-1.0)
     with pytest.raises(Exception):
         mvkp.register_aerial(city.depth, city.photo, outline_completeness=5.0)
+
+
+def test_outline_search_reports_a_pose_refined_out_of_view():
+    # issue 21: the image check's refinement can leave just under the outline search's overlap floor
+    # in view (seed 138's suburb 37, the refined pose's samples 0.23 in the photo against a floor of
+    # 0.25). No answer, as before, but the reason says why and the score is the pose's, not -1e18.
+    c = mvkp.make_city(138000451, style="suburb")
+    r = mvkp.register_aerial(c.depth, c.photo, method="outlines")
+    assert not r.ok
+    assert "e+18" not in r.reason and "1000000000000000000" not in r.reason
+    assert "of its outline samples fall in the photo" in r.reason, r.reason
+    assert "confidence 0.00" in r.reason
+    score = float(r.reason.split("score ")[1].split(",")[0])
+    assert 0 < score < 1e6

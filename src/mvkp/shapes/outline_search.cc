@@ -458,7 +458,8 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     *score = (v[0] * (nx * nx - ny * ny) + v[1] * 2 * nx * ny) / r2;
     return true;
   };
-  auto fine_score = [&](const cv::Matx33d& T, const Field& f, double* coverage) {
+  // (-1e18 below the overlap floor, unless `floor` is false)
+  auto fine_score = [&](const cv::Matx33d& T, const Field& f, double* coverage, bool floor = true) {
     const cv::Matx33d D = T.inv();
     double sum = 0, w2 = 0, v = 0;
     int n = 0;
@@ -470,7 +471,8 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     }
     if (coverage) *coverage = double(n) / double(fs.size());
     const int need = std::max(o.min_samples, int(std::ceil(o.min_overlap * double(fs.size()))));
-    return n >= need ? sum / std::sqrt(f.v * w2) : -1e18;
+    if (n >= need) return sum / std::sqrt(f.v * w2);
+    return floor || !(w2 > 0) ? -1e18 : sum / std::sqrt(f.v * w2);
   };
   auto refine = [&](cv::Matx33d T, double s, double start_px) {
    double best = 0;
@@ -562,6 +564,7 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
 
   // final refinement on the image check, which also gives its verdict
   std::string model = "similarity";
+  bool overlap_lost = false;  // the refined pose keeps less than min_overlap of the template in view
   double moved = 0;  // by the image check's refinement (depth px)
   if (evidence) {
     const cv::Matx33d T2 = evidence->Refine(best.T, o.perspective);
@@ -576,6 +579,10 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
     const cv::Matx33d& T = best.T;
     const double s = std::sqrt(std::abs(T(0, 0) * T(1, 1) - T(0, 1) * T(1, 0)));
     best.z = fine_score(best.T, field_for(s), &best.coverage);
+    // The image check's refinement can leave just under min_overlap of the
+    // template in view: no answer, reported with its score and the reason
+    // (not a score of -1e18).
+    if (best.z <= -1e17) overlap_lost = true, best.z = fine_score(best.T, field_for(s), nullptr, false);
     res.completeness = completeness(best.T);
     if (o.completeness_power > 0 && best.z > 0) best.z *= std::pow(res.completeness, o.completeness_power);
   }
@@ -596,7 +603,7 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   res.runner_up = runner;
   res.coverage = best.coverage;
   // confidence: the margin of the best over the best clearly different pose
-  const double margin = best.z > 0 ? (best.z - std::max(runner, 0.0)) / best.z : 0.0;
+  const double margin = best.z > 0 && !overlap_lost ? (best.z - std::max(runner, 0.0)) / best.z : 0.0;
   res.confidence = std::clamp(margin / 0.5, 0.0, 1.0);
   // outlines in view: a single building's outline can sit on any similar
   // rectangle of other ground
@@ -636,6 +643,10 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   if (!held)
     res.reason += cv::format(", the image check's perspective refinement moves it %.1f px (>= %.0f): not the pose",
                              moved, o.distinct_px);
+  if (overlap_lost)
+    res.reason += cv::format(", refined, only %.2f of its outline samples fall in the photo (floor %.2f, or %d "
+                             "samples): confidence 0",
+                             best.coverage, o.min_overlap, o.min_samples);
   if (!res.ok) res.reason = "no registration found: " + res.reason;
   res.ms = timer.ElapsedMs();
   return res;
