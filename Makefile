@@ -48,7 +48,7 @@ SAN_SHIM = $(SAN_BUILD)/libmvkp_opencv_usac_overread.so
 SAN_TEST_ENV = ASAN_OPTIONS=$(SAN_ASAN):allow_user_segv_handler=1 $(SAN_UBSAN_LSAN) LD_PRELOAD=$(CURDIR)/$(SAN_SHIM)
 # Not run there: api_docs (Doxygen output, checked in $(BUILD)); two timing
 # tests (AugmentTiming.SiftImage800px is a benchmark, Register.SyntheticCities
-# asserts a mean time; 310 s and 125 s under the sanitizers); and the three
+# prints a mean time; 310 s and 125 s under the sanitizers); and the three
 # slowest correctness tests (440, 210 and 180 s, 25 % of the sanitizer run),
 # whose code the other tests of their components run too; and
 # Aerial.ARelocationTheEdgesClearlyPreferIsKept (two 1000 x 1000 registrations;
