@@ -153,6 +153,7 @@ struct RegisterArgs {
   bool no_outline_objects = false;
   double outline_object_weight = OutlineSearchOptions{}.object_weight;
   double outline_completeness = OutlineSearchOptions{}.completeness_power;
+  double outline_min_completeness = OutlineSearchOptions{}.min_completeness;
   double outline_relocate_confidence = AerialOptions{}.outline_relocate_confidence;
   RegistrationOptions opt;
   EdgeEvidenceOptions edge;
@@ -245,6 +246,7 @@ Json RegisterCompute(RegisterArgs& a) {
     ao.outline_objects = !a.no_outline_objects;
     ao.outline.object_weight = a.outline_object_weight;
     ao.outline.completeness_power = a.outline_completeness;
+    ao.outline.min_completeness = a.outline_min_completeness;
     ao.outline_relocate_confidence = a.outline_relocate_confidence;
     ao.photo_res_m = img.res_m;
     ao.depth_res_m = d.res_m;
@@ -446,6 +448,11 @@ void RegisterRegister(CLI::App& app, int* code) {
                 "to this power (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 4.0));
+  c->add_option("--outline-min-completeness", a->outline_min_completeness,
+                "outline search: an answer needs this share of its building outlines' arcs in view on edges (a pose "
+                "on other ground lays parts of several outlines on a similar street grid; 0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   c->add_option("--outline-relocate-confidence", a->outline_relocate_confidence,
                 "outline search: its refused best pose is relocated onto the edges and judged again when its "
                 "confidence reaches this (0: off)")

@@ -348,7 +348,7 @@ void BindAerial(py::module_& m) {
          py::handle optical_options, py::handle edge_options, py::handle options, const std::string& method,
          double photo_res_m, double depth_res_m, bool shadow_compensation, bool shadow_fallback,
          bool cast_shadow_fallback, double cast_shadow_confirm_margin, int outline_roof_veto_regions,
-         bool outline_objects, double outline_completeness, py::kwargs kw) {
+         bool outline_objects, double outline_completeness, double outline_min_completeness, py::kwargs kw) {
         if (method != "auto" && method != "regions" && method != "outlines")
           throw py::value_error("method must be 'auto', 'regions' or 'outlines'");
         const RegistrationOptions ro = MakeOptions<RegistrationOptions>(options, kw, "register_aerial");
@@ -384,6 +384,7 @@ void BindAerial(py::module_& m) {
           ao.outline_roof_veto_regions = outline_roof_veto_regions;
           ao.outline_objects = outline_objects;
           ao.outline.completeness_power = outline_completeness;
+          ao.outline.min_completeness = outline_min_completeness;
           AerialRegistration ar = RegisterAerial(cv::Mat1f(z.mat), img.mat, ao);  // the same pipeline as `mvkp register`
           out->reg = std::move(ar.registration);
           out->photo_regions = std::move(ar.photo_regions);
@@ -419,6 +420,7 @@ void BindAerial(py::module_& m) {
       py::arg("outline_roof_veto_regions") = AerialOptions{}.outline_roof_veto_regions,
       py::arg("outline_objects") = AerialOptions{}.outline_objects,
       py::arg("outline_completeness") = OutlineSearchOptions{}.completeness_power,
+      py::arg("outline_min_completeness") = OutlineSearchOptions{}.min_completeness,
       "Registers an aerial photo (HxWx3 BGR) onto a depth image ((H, W) float32 metres) by building shapes, as "
       "`mvkp register`: segments both, matches region shapes, propagates to a global transform. 'No registration "
       "found' is a result (ok False, reason), not an error. Keyword arguments are RegistrationOptions fields "
@@ -438,7 +440,8 @@ void BindAerial(py::module_& m) {
       "apart is refused however clear its edges. outline_objects (True): the outline search also scores the "
       "outlines of trees, hedges and sheds the depth shows (never counted as outlines in view); "
       "outline_completeness (1; 0 off): its poses' scores are weighted by the share of their building outlines' "
-      "arcs on edges, to this power. "
+      "arcs on edges, to this power; outline_min_completeness (0.8; 0 off): an outline-search answer needs that "
+      "share at least. "
       "The result's method and confidence say which method answered and how surely.");
 
   // ---------------------------------------------------------------- stage 2 (issue 22)

@@ -290,6 +290,20 @@ def test_outline_objects_and_completeness(city):
         mvkp.register_aerial(city.depth, city.photo, outline_completeness=5.0)
 
 
+def test_outline_search_refuses_outlines_partly_on_other_ground():
+    # issue 21/22: the nadir photo of another suburb (synth-oblique seed 117, city 1) was registered onto
+    # city 0's depth by the outline search: 6 of 10 outlines on edges, confidence 0.51, but only 0.58 of
+    # the outlines' arcs in view on edges (right answers: 0.84 or more, 72 of them over seven seed sets).
+    depth = mvkp.make_city(117000351, style="suburb").depth
+    other = mvkp.make_city(117000352, style="suburb").photo
+    r = mvkp.register_aerial(depth, other)
+    assert not r.ok, r.reason
+    assert "arcs in view on edges (0.80 needed)" in r.reason, r.reason
+    # without the floor the same pose is accepted: the floor is what refuses it
+    r0 = mvkp.register_aerial(depth, other, outline_min_completeness=0.0)
+    assert r0.ok and r0.method == "outlines", r0.reason
+
+
 def test_outline_search_reports_a_pose_refined_out_of_view():
     # issue 21: the image check's refinement can leave just under the outline search's overlap floor
     # in view (seed 138's suburb 37, the refined pose's samples 0.23 in the photo against a floor of

@@ -315,7 +315,7 @@ AerialRegistration RegisterPass(cv::Mat1f depth, cv::Mat photo, const AerialOpti
   // pose must pass the search's own edge test, then every check below.
   if (!out.outline.ok && evidence && o.outline_relocate_confidence > 0 &&
       out.outline.confidence >= o.outline_relocate_confidence && out.outline.held &&
-      out.outline.outlines_in_view >= so.min_outlines) {
+      out.outline.outlines_in_view >= so.min_outlines && out.outline.completeness >= so.min_completeness) {
     const EdgeEvidence::Relocation rl =
         evidence->Relocate(out.outline.photo_to_depth, out.outline.lean_px_per_m, so.perspective);
     const EdgeScore& e = rl.edge;

@@ -31,6 +31,7 @@ void OutlineSearchOptions::Check() const {
   need(min_confidence >= 0 && min_confidence <= 1, "OutlineSearchOptions.min_confidence in [0, 1]");
   need(object_weight >= 0 && object_weight <= 1 && completeness_power >= 0 && completeness_power <= 4,
        "OutlineSearchOptions: object_weight in [0, 1], completeness_power in [0, 4]");
+  need(min_completeness >= 0 && min_completeness <= 1, "OutlineSearchOptions.min_completeness in [0, 1]");
 }
 
 namespace {
@@ -631,7 +632,8 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   // answer of seeds 108-111 changed.
   const bool held = !evidence || !o.perspective || moved < o.distinct_px;
   res.held = held;
-  res.ok = res.confidence >= o.min_confidence && edge_ok && res.outlines_in_view >= o.min_outlines && held;
+  const bool complete = res.completeness >= o.min_completeness;
+  res.ok = res.confidence >= o.min_confidence && edge_ok && res.outlines_in_view >= o.min_outlines && held && complete;
   res.reason = cv::format("outline search: score %.1f, runner-up %.1f, confidence %.2f, coverage %.2f, completeness %.2f, "
                           "%d outlines in view, %d poses",
                           best.z, runner, res.confidence, best.coverage, res.completeness, res.outlines_in_view, res.poses);
@@ -643,6 +645,10 @@ OutlineSearchResult SearchOutlines(const cv::Mat& photo, double ps, const std::v
   if (!held)
     res.reason += cv::format(", the image check's perspective refinement moves it %.1f px (>= %.0f): not the pose",
                              moved, o.distinct_px);
+  if (!complete)
+    res.reason += cv::format(", only %.2f of its outlines' arcs in view on edges (%.2f needed): parts of outlines "
+                             "on other ground's edges",
+                             res.completeness, o.min_completeness);
   if (overlap_lost)
     res.reason += cv::format(", refined, only %.2f of its outline samples fall in the photo (floor %.2f, or %d "
                              "samples): confidence 0",

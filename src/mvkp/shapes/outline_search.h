@@ -86,6 +86,13 @@ struct OutlineSearchOptions {
   // road's edges scores as well as the roofs themselves; only the roofs put
   // the rest of their outlines on edges too.
   double completeness_power = 1.0;
+  // An answer needs at least this completeness (the same share, at the
+  // answer; 0: off). A pose on other ground lays some sides of several
+  // outlines on a similar street grid's edges, not their whole outlines:
+  // two photos of other ground that passed every other check (of 120
+  // photos of other suburbs, towns and civic centres, large tiles) had
+  // 0.58 and 0.67; right answers had 0.88 or more (docs/aerial.md).
+  double min_completeness = 0.8;
   bool perspective = true;          // final EdgeEvidence refinement includes the homography; with
                                     //   evidence, an answer must then hold under it (move its outlines
                                     //   < distinct_px): a similarity the refinement leaves is not the pose

@@ -186,7 +186,20 @@ TEST(OutlineSearch, CompletenessCountsTheArcsOnEdges) {
   std::printf("roofs: completeness %.2f; kerbs: %s / %s\n", roofs.completeness, k0.reason.c_str(), k1.reason.c_str());
   EXPECT_LE(k1.completeness, 0.75) << k1.reason;
   EXPECT_LT(k1.score, k0.score) << k1.reason;
+  // An answer needs min_completeness (0.8) too: the kerbs' pose is refused,
+  // and the reason says why; without the floor only the rest decides.
+  EXPECT_FALSE(k1.ok) << k1.reason;
+  EXPECT_NE(k1.reason.find("arcs in view on edges"), std::string::npos) << k1.reason;
+  OutlineSearchOptions nofloor = off;
+  nofloor.min_completeness = 0;
+  const OutlineSearchResult k2 = SearchOutlines(kerbs, 1.0, b, nofloor);
+  EXPECT_DOUBLE_EQ(k2.completeness, k0.completeness);
+  EXPECT_EQ(k0.ok, k2.ok && k2.completeness >= off.min_completeness) << k0.reason << " / " << k2.reason;
+  EXPECT_EQ(k2.reason.find("arcs in view on edges"), std::string::npos) << k2.reason;
   OutlineSearchOptions bad;
+  bad.min_completeness = 1.5;
+  EXPECT_THROW(SearchOutlines(kerbs, 1.0, b, bad), Error);
+  bad = OutlineSearchOptions{};
   bad.completeness_power = -1;
   EXPECT_THROW(SearchOutlines(kerbs, 1.0, b, bad), Error);
   bad = OutlineSearchOptions{};
