@@ -91,7 +91,8 @@ struct OutlineSearchOptions {
   // outlines on a similar street grid's edges, not their whole outlines:
   // two photos of other ground that passed every other check (of 120
   // photos of other suburbs, towns and civic centres, large tiles) had
-  // 0.58 and 0.67; right answers had 0.88 or more (docs/aerial.md).
+  // 0.58 and 0.67; the 72 answers of seven seed sets, right and wrong,
+  // 0.84 or more (docs/aerial.md).
   double min_completeness = 0.8;
   bool perspective = true;          // final EdgeEvidence refinement includes the homography; with
                                     //   evidence, an answer must then hold under it (move its outlines
