@@ -714,12 +714,20 @@ TEST(Aerial, AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused) {
     EXPECT_GE(r.registration.edge.roof_contrast, EdgeEvidenceOptions{}.roof_veto);
   }
   // The search as it was when the rule was made (no objects, no
-  // completeness: since then the search no longer finds that pose first).
-  const AerialOptions old = OutlineSearchBeforeCompleteness();
+  // completeness, no completeness floor: since then the search no longer
+  // finds that pose first).
+  AerialOptions old = OutlineSearchBeforeCompleteness();
+  old.outline.min_completeness = 0;
   const AerialRegistration ro = RegisterAerial(c.depth, c.photo, old);
   AerialOptions off = old;
   off.outline_roof_veto_regions = 0;
   const AerialRegistration w = RegisterAerial(c.depth, c.photo, off);
+  // The completeness floor (OutlineSearchOptions::min_completeness) refuses
+  // that pose too, without the roofs: 0.69 of its outlines' arcs on edges.
+  AerialOptions floor_only = off;
+  floor_only.outline.min_completeness = OutlineSearchOptions{}.min_completeness;
+  const AerialRegistration f = RegisterAerial(c.depth, c.photo, floor_only);
+  ExpectRightOrNone(c, f);
   std::printf("with the rule: %s\nwithout: %s\n", ro.registration.ok ? "registered" : ro.registration.reason.c_str(),
               w.registration.ok ? cv::format("%s, %.1f px", w.method.c_str(),
                                              CornerError(c, w.registration.photo_to_depth)).c_str()
@@ -731,6 +739,8 @@ TEST(Aerial, AnOutlineAnswerWhoseRoofsDoNotStandApartIsRefused) {
   ASSERT_TRUE(w.registration.ok);
   EXPECT_EQ(w.method, "outlines");
   EXPECT_GT(CornerError(c, w.registration.photo_to_depth), 100.0);
+  EXPECT_FALSE(f.registration.ok) << f.registration.reason;
+  EXPECT_NE(f.registration.reason.find("arcs in view on edges"), std::string::npos) << f.registration.reason;
 #endif
   AerialOptions bad;
   bad.outline_roof_veto_regions = -1;
